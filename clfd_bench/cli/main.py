@@ -1,0 +1,58 @@
+"""Entry point of the ``clfd-bench`` console script."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from clfd_bench import __version__
+
+__all__ = ["build_parser", "main"]
+
+COMMANDS: tuple[str, ...] = ("data",)
+"""Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
+
+BENCH_COMMANDS: tuple[str, ...] = ()
+"""Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench bench <name>`` subcommand."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser (subcommands registered from their modules)."""
+    parser = argparse.ArgumentParser(
+        prog="clfd-bench",
+        description="Continual learning from demonstration, scored on a simulated Franka Panda.",
+    )
+    parser.add_argument("--version", action="version", version=f"clfd-bench {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"clfd_bench.cli.{name}").register(sub)
+    if BENCH_COMMANDS:
+        bench = sub.add_parser("bench", help="speed benchmarks (training, simulation)")
+        bench_sub = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
+        for name in BENCH_COMMANDS:
+            importlib.import_module(f"clfd_bench.cli.{name}").register(bench_sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``clfd-bench`` with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# clfd-bench's two set-up commands (see README):
+#   bash run.sh main   # set up, then run the main job (writes results/)
+#   bash run.sh test   # set up, then run the test suite
+# Set-up: a virtual environment in .venv (or $CLFD_VENV) with torch 2.13.0 and the project
+# installed in editable mode; reused on later runs. Offline machines: set CLFD_DATA_DIR and
+# MENAGERIE_ROOT first (README, "Offline use"); ../shared is used when it is beside the repo.
+set -euo pipefail
+cd "$(dirname "$0")"
+what="${1:-}"
+case "$what" in
+  main|test|setup) ;;
+  *) echo "usage: bash run.sh main|test|setup" >&2; exit 2 ;;
+esac
+
+venv="${CLFD_VENV:-.venv}"
+if [ ! -x "$venv/bin/python" ]; then
+  echo "[run.sh] creating virtual environment $venv" >&2
+  python3 -m venv "$venv"
+fi
+# shellcheck disable=SC1091
+. "$venv/bin/activate"
+stamp="$venv/.clfd-installed"
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  echo "[run.sh] installing clfd-bench and its dependencies into $venv" >&2
+  python -m pip install --quiet --upgrade pip
+  if ! python -c "import torch" 2>/dev/null; then
+    # CLFD_TORCH_INDEX (e.g. https://download.pytorch.org/whl/cpu) picks a CPU-only build.
+    python -m pip install --quiet "torch==2.13.0" ${CLFD_TORCH_INDEX:+--index-url "$CLFD_TORCH_INDEX"}
+  fi
+  python -m pip install --quiet -e ".[dev,dist]"
+  touch "$stamp"
+fi
+
+# Offline copies beside the checkout (CI, this project's machines).
+if [ -z "${CLFD_DATA_DIR:-}" ] && [ -d ../shared/datasets ]; then
+  export CLFD_DATA_DIR="$(cd ../shared/datasets && pwd)"
+fi
+if [ -z "${MENAGERIE_ROOT:-}" ] && [ -d ../shared/menagerie ]; then
+  export MENAGERIE_ROOT="$(cd ../shared/menagerie && pwd)"
+fi
+export MUJOCO_GL="${MUJOCO_GL:-egl}"
+
+case "$what" in
+  setup) echo "[run.sh] ready: . $venv/bin/activate" >&2 ;;
+  test) exec python -m pytest -q "${@:2}" ;;
+  main) exec python eval/main_job.py "${@:2}" ;;
+esac
