@@ -16,8 +16,6 @@ def _register_envs() -> None:
     try:
         from clfd_bench.envs.registration import register_envs
     except ModuleNotFoundError as exc:  # pragma: no cover - only in a broken install
-        if exc.name in ("clfd_bench.envs", "clfd_bench.envs.registration"):
-            return  # LEAD-TEMP: envs under construction; made strict before commit
         if exc.name and exc.name.startswith("clfd_bench"):
             raise
         raise ModuleNotFoundError(

@@ -1,0 +1,473 @@
+"""`PandaEnv`: the shared Gymnasium environment of every clfd-bench task.
+
+One class runs the loop every task shares; tasks (RoboTasks scenes, writing) are subclasses that
+fill in hooks. Per `step`:
+
+1. the action is checked (NaN/inf raise a ValueError naming the entries) and mapped to a target
+   pose of the tracked frame (`_action_to_target`);
+2. mink IK (`clfd_bench.sim.ik.PoseTracker`, on the robot-only model) moves its joint solution
+   towards the target: one control step at the data rate (60 Hz);
+3. the Menagerie joint position servos follow the IK solution through `n_substeps` physics steps
+   (~2 ms each), the reference interpolated linearly within the control period with velocity
+   feed-forward (the command leads by kv/kp × the reference velocity, which removes the servo's
+   steady lag);
+4. task hooks run (`_after_step`), a physics blow-up (MuJoCo bad qpos/qvel/qacc warnings or
+   non-finite state) ends the episode as a failure with `info["failure_reason"]`;
+5. the observation, sparse reward (1.0 when `_is_success`) and info are returned.
+
+Hooks for subclasses (all optional except those marked *):
+
+- `tool` (class attribute): None or "pen".
+- `_task_xml() -> Path | None`: the task scene MJCF (from `tasks/`), attached to the world.
+- `_edit_spec(spec)`: edit the composed `MjSpec` before compiling (options, attachments).
+- `_bind()`: after compiling; look up ids of task objects.
+- `num_demos` (property)*: number of demos `reset(options={"demo": j})` accepts.
+- `_start_qpos(demo) -> [7]`: arm start configuration (default `home`).
+- `_reset_task(demo)`: place objects / set task state for demo j (robot already placed).
+- `_default_horizon(demo) -> int`: episode length in steps (truncation).
+- `_action_space() -> Box` and `_action_to_target(action) -> (pos [3], quat [4], gripper)`:
+  default: 7-D pose (+1 gripper command in [0, 1], 1 = closed, when `gripper_action`).
+- `_apply_gripper(cmd)`: default sets the Menagerie gripper actuator (1 = closed, 0 = open).
+- `_task_observation_space() -> dict[str, Space]` and `_task_obs() -> dict[str, ndarray]`.
+- `_after_step()`: after the physics of each step (e.g. record ink, update attachments).
+- `_is_success(final: bool) -> bool`: `final` is True on the episode's last step and in
+  `evaluate()`; cheap checks may ignore it, expensive ones may only run when it is True.
+- `_task_info() -> dict`: extra info entries.
+- `trajectory_to_actions(traj [T, D]) -> [T, A]`: dataset units -> actions (default: 7-D
+  poses, gripper closed).
+- `dataset`, `task_name` (class/instance attributes) and `demo_trajectory(j)`: the demos
+  `clfd-bench replay` executes (default: the data layer's task demos).
+- `settle_actions(last_action [A], steps) -> [steps, A]`: actions after the trajectory
+  (default: hold the last action; RoboTasks: open the gripper).
+- `_task_state() -> dict` / `_restore_task_state(state)`: extra episode state for pickling.
+- `camera() -> CameraSpec` and `_decorate(scene)`: what `render()` shows.
+
+Envs pickle: the constructor arguments and the episode state are stored and the model is rebuilt
+on unpickling. Envs are deterministic per seed (the only randomness is the demo drawn when
+`reset` gets no `options["demo"]`).
+"""
+
+from __future__ import annotations
+
+import pathlib
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from clfd_bench.sim.ik import PoseTracker, quat_angle
+from clfd_bench.sim.render import CameraSpec, OffscreenRenderer
+from clfd_bench.sim.robot import (
+    FINGER_OPEN,
+    HOME_QPOS,
+    RobotIndex,
+    attach_spec,
+    gripper_ctrl,
+    panda_spec,
+    robot_model,
+)
+
+CONTROL_HZ = 60.0
+_BLOWUP_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def load_task(dataset: str, name: str):
+    """The data layer's `Task` `name` of `dataset` (e.g. ("robotasks", "openbox")); raises
+    ValueError listing the valid task names."""
+    from clfd_bench.data import load_dataset
+
+    ds = load_dataset(dataset)
+    names = list(ds.task_names)
+    if name not in names:
+        raise ValueError(f"dataset {dataset!r} has no task {name!r}; valid: {names}")
+    return ds.tasks[names.index(name)]
+
+
+def check_finite_action(action: np.ndarray) -> None:
+    """Raises ValueError naming the NaN/inf entries of `action`."""
+    bad = ~np.isfinite(action)
+    if bad.any():
+        idx = np.flatnonzero(bad).tolist()
+        raise ValueError(f"action has non-finite entries at indices {idx} (values "
+                         f"{action.reshape(-1)[bad.reshape(-1)].tolist()}); actions must be finite")
+
+
+class PandaEnv(gym.Env):
+    """Base class of the clfd-bench Panda environments (see the module docstring for the hooks).
+
+    Args:
+        render_mode: None or "rgb_array" (offscreen, EGL when MUJOCO_GL=egl).
+        physics_dt: target physics step, seconds; the control period (1/60 s) is split into
+            round(control_dt / physics_dt) substeps.
+        ik_iterations: mink QP iterations per control step (their dt splits the control period).
+        width, height: rendered image size.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": int(CONTROL_HZ)}
+    #: the data layer dataset and task this env executes (used by replay and the harness).
+    dataset: str = ""
+    task_name: str = ""
+    #: None or "pen": the tool the robot holds.
+    tool: str | None = None
+    #: whether the default action has a gripper command (8-D instead of 7-D).
+    gripper_action: bool = False
+    #: default workspace bounds of the default pose action's position, metres.
+    workspace_low = np.array([-1.0, -1.0, 0.0])
+    workspace_high = np.array([1.0, 1.0, 1.3])
+
+    def __new__(cls, *args: Any, **kwargs: Any):
+        obj = super().__new__(cls)
+        obj._ctor_args = (args, dict(kwargs))
+        return obj
+
+    def __init__(self, render_mode: str | None = None, *, physics_dt: float = 0.002,
+                 ik_iterations: int = 1, width: int = 640, height: int = 480):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}"
+                             f", got {render_mode!r}")
+        if not physics_dt > 0:
+            raise ValueError(f"physics_dt must be > 0, got {physics_dt}")
+        self.render_mode = render_mode
+        self.control_dt = 1.0 / CONTROL_HZ
+        self.n_substeps = max(1, int(round(self.control_dt / physics_dt)))
+        self._substep_fractions = np.arange(1, self.n_substeps + 1) / self.n_substeps
+        self.width, self.height = int(width), int(height)
+
+        spec = panda_spec(self.tool)
+        xml = self._task_xml()
+        if xml is not None:
+            attach_spec(spec, mujoco.MjSpec.from_file(str(xml)))
+        self._edit_spec(spec)
+        self.model = spec.compile()
+        self.model.opt.timestep = self.control_dt / self.n_substeps
+        self.data = mujoco.MjData(self.model)
+        self.robot = RobotIndex(self.model)
+        self.tracker = PoseTracker(robot_model(self.tool), iterations=ik_iterations,
+                                   dt=self.control_dt / ik_iterations)
+        self._bind()
+
+        self.action_space = self._action_space()
+        obs_spaces: dict[str, spaces.Space] = {
+            "ee_pos": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+            "ee_quat": spaces.Box(-1.0, 1.0, (4,), np.float64),
+            "qpos": spaces.Box(-np.inf, np.inf, (7,), np.float64),
+            "qvel": spaces.Box(-np.inf, np.inf, (7,), np.float64),
+        }
+        obs_spaces.update(self._task_observation_space())
+        self.observation_space = spaces.Dict(obs_spaces)
+
+        self._renderer: OffscreenRenderer | None = None
+        self.demo = 0
+        self.horizon = 0
+        self._step_count = 0
+        self._q_ref_prev = HOME_QPOS.copy()
+        self._failure_reason: str | None = None
+        self._last_success = False
+        self._tracking_error = (0.0, 0.0)
+        self._ik_error = (0.0, 0.0)
+        self._target_pos = np.zeros(3)
+        self._target_quat = np.array([1.0, 0.0, 0.0, 0.0])
+        self._warn_base = np.zeros(len(_BLOWUP_WARNINGS), dtype=int)
+        self._reset_robot(0, HOME_QPOS)
+
+    # ------------------------------------------------------------------ hooks (override)
+    def _task_xml(self) -> pathlib.Path | None:
+        return None
+
+    def _edit_spec(self, spec: mujoco.MjSpec) -> None:
+        pass
+
+    def _bind(self) -> None:
+        pass
+
+    @property
+    def num_demos(self) -> int:
+        raise NotImplementedError(f"{type(self).__name__} must define num_demos")
+
+    def _start_qpos(self, demo: int) -> np.ndarray:
+        return HOME_QPOS.copy()
+
+    def _reset_task(self, demo: int) -> None:
+        pass
+
+    def _default_horizon(self, demo: int) -> int:
+        return 1200
+
+    def _action_space(self) -> spaces.Box:
+        low = np.concatenate([self.workspace_low, -np.ones(4)])
+        high = np.concatenate([self.workspace_high, np.ones(4)])
+        if self.gripper_action:
+            low, high = np.append(low, 0.0), np.append(high, 1.0)
+        return spaces.Box(low, high, dtype=np.float64)
+
+    def _action_to_target(self, action: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, float | None]:
+        quat = action[3:7]
+        if np.linalg.norm(quat) < 1e-9:
+            quat = self._target_quat  # a zero quaternion carries no orientation: keep the last
+        return action[:3], quat, (float(action[7]) if self.gripper_action else None)
+
+    def _apply_gripper(self, command: float) -> None:
+        """command in [0, 1]: 1 = closed, 0 = fully open."""
+        self.data.ctrl[self.robot.gripper_act] = gripper_ctrl(
+            (1.0 - float(np.clip(command, 0.0, 1.0))) * FINGER_OPEN)
+
+    def _task_observation_space(self) -> dict[str, spaces.Space]:
+        return {}
+
+    def _task_obs(self) -> dict[str, np.ndarray]:
+        return {}
+
+    def _after_step(self) -> None:
+        pass
+
+    def _is_success(self, final: bool) -> bool:
+        return False
+
+    def _task_info(self) -> dict[str, Any]:
+        return {}
+
+    def _task_state(self) -> dict[str, Any]:
+        return {}
+
+    def _restore_task_state(self, state: dict[str, Any]) -> None:
+        pass
+
+    def camera(self) -> CameraSpec:
+        """The camera `render()` uses."""
+        return CameraSpec()
+
+    def _decorate(self, scene: mujoco.MjvScene) -> None:
+        """Adds visual-only geoms to a rendered frame (e.g. the ink of the writing tasks)."""
+
+    def trajectory_to_actions(self, trajectory: np.ndarray) -> np.ndarray:
+        """Dataset trajectory [T, D] (data units) -> actions [T, A].
+
+        Default: 7-D poses (position m, quaternion w,x,y,z), plus gripper closed (1.0) when the
+        action has a gripper command.
+        """
+        traj = np.asarray(trajectory, dtype=float)
+        if traj.ndim != 2 or traj.shape[1] != 7:
+            raise ValueError(f"{type(self).__name__} expects a pose trajectory [T, 7] "
+                             f"(px, py, pz in m, qw, qx, qy, qz), got shape {traj.shape}")
+        if self.gripper_action:
+            traj = np.concatenate([traj, np.ones((len(traj), 1))], axis=1)
+        return traj
+
+    def demo_trajectory(self, demo: int) -> np.ndarray:
+        """Demo `demo` of the env's task in data units ([T, D]), as `rollout` takes it.
+        Default: from the data layer via (`dataset`, `task_name`)."""
+        if not self.dataset or not self.task_name:
+            raise NotImplementedError(f"{type(self).__name__} sets no dataset/task_name")
+        return np.asarray(load_task(self.dataset, self.task_name).demos[demo], dtype=float)
+
+    def settle_actions(self, last_action: np.ndarray, steps: int) -> np.ndarray:
+        """Actions [steps, A] run after the trajectory (release, settle): default holds the last
+        action."""
+        return np.repeat(np.asarray(last_action, dtype=float)[None], steps, axis=0)
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Resets to demo `options["demo"]`'s start (default: a demo drawn with the seed).
+
+        Options:
+            demo: int, the demo whose start configuration and scene to use.
+            horizon: int, episode length in steps (default: the task's).
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - {"demo", "horizon"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: ['demo', 'horizon']")
+        n = self.num_demos
+        if options.get("demo") is None:
+            demo = int(self.np_random.integers(n))
+        else:
+            demo = int(options["demo"])
+            if not 0 <= demo < n:
+                raise ValueError(f"demo must be in [0, {n}), got {demo}")
+        self.demo = demo
+        self._reset_robot(demo, self._start_qpos(demo))
+        self._reset_task(demo)
+        mujoco.mj_forward(self.model, self.data)
+        horizon = options.get("horizon")
+        self.horizon = int(horizon) if horizon is not None else self._default_horizon(demo)
+        if self.horizon < 1:
+            raise ValueError(f"horizon must be >= 1, got {self.horizon}")
+        return self._get_obs(), self._info()
+
+    def _reset_robot(self, demo: int, q0: np.ndarray) -> None:
+        q0 = np.asarray(q0, dtype=float).reshape(7)
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[self.robot.arm_qpos] = q0
+        self.data.ctrl[self.robot.arm_act] = q0
+        self.data.qpos[self.robot.finger_qpos] = 0.0
+        self._apply_gripper(1.0)
+        self.tracker.reset(q0)
+        self._q_ref_prev = q0.copy()
+        hand = self.robot.hand_body
+        mujoco.mj_kinematics(self.model, self.data)
+        self._target_pos = self.data.xpos[hand].copy()
+        self._target_quat = self.data.xquat[hand].copy()
+        self._step_count = 0
+        self._failure_reason = None
+        self._last_success = False
+        self._tracking_error = (0.0, 0.0)
+        self._ik_error = (0.0, 0.0)
+        self._warn_base = np.array([self.data.warning[w].number for w in _BLOWUP_WARNINGS])
+
+    def step(self, action: np.ndarray):
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, "
+                             f"got {action.shape}")
+        check_finite_action(action)
+        pos, quat, grip = self._action_to_target(action)
+        q_ref, ik_pe, ik_re = self.tracker.track(pos, quat)
+        self._target_pos = np.asarray(pos, dtype=float).copy()
+        self._target_quat = self.tracker._target_quat.copy()
+        self._ik_error = (ik_pe, ik_re)
+        if grip is not None:
+            self._apply_gripper(grip)
+        self._drive(q_ref)
+        self._step_count += 1
+
+        terminated = False
+        if self._failure_reason is None:
+            self._failure_reason = self._check_blowup()
+        if self._failure_reason is not None:
+            terminated = True
+            success = False
+        else:
+            self._after_step()
+            hand = self.robot.hand_body
+            self._tracking_error = (
+                float(np.linalg.norm(self.data.xpos[hand] - self._target_pos)),
+                quat_angle(self.data.xquat[hand], self._target_quat))
+            truncated_now = self._step_count >= self.horizon
+            success = bool(self._is_success(final=truncated_now))
+        self._last_success = success
+        truncated = self._step_count >= self.horizon and not terminated
+        obs = self._get_obs()
+        if self.render_mode == "rgb_array" and self._renderer is None:
+            self._make_renderer()
+        return obs, (1.0 if success else 0.0), terminated, truncated, self._info()
+
+    def evaluate(self) -> dict[str, Any]:
+        """Decides success now (as at the episode's end) and returns the info dict."""
+        if self._failure_reason is None:
+            self._last_success = bool(self._is_success(final=True))
+        return self._info()
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array'")
+            return None
+        if self._renderer is None:
+            self._make_renderer()
+        return self._renderer.render(self.data, self._decorate)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ------------------------------------------------------------------ internals
+    def _make_renderer(self) -> None:
+        self._renderer = OffscreenRenderer(self.model, self.width, self.height, self.camera())
+
+    def _drive(self, q_ref: np.ndarray) -> None:
+        """Runs the physics of one control period with the servo reference moving linearly from
+        the previous IK solution to `q_ref` [7], with velocity feed-forward."""
+        m, d, r = self.model, self.data, self.robot
+        q0 = self._q_ref_prev
+        dq = q_ref - q0
+        refs = q0 + self._substep_fractions[:, None] * dq + (r.arm_ctrl_tau / self.control_dt) * dq
+        np.clip(refs, r.arm_ctrl_range[:, 0], r.arm_ctrl_range[:, 1], out=refs)
+        ctrl = d.ctrl
+        act = r.arm_act_slice
+        for ref in refs:
+            ctrl[act] = ref
+            mujoco.mj_step(m, d)
+        self._q_ref_prev = np.array(q_ref, dtype=float)
+
+    def _check_blowup(self) -> str | None:
+        d = self.data
+        counts = np.array([d.warning[w].number for w in _BLOWUP_WARNINGS])
+        new = counts > self._warn_base
+        finite = np.isfinite(d.qpos.sum() + d.qvel.sum())
+        if not new.any() and finite:
+            return None
+        names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
+        what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"
+        return (f"physics blow-up at step {self._step_count} ({what}); the scene is unstable: "
+                "check the task MJCF (masses, solver settings, timestep)")
+
+    def _get_obs(self) -> dict[str, np.ndarray]:
+        hand = self.robot.hand_body
+        obs = {
+            "ee_pos": self.data.xpos[hand].copy(),
+            "ee_quat": np.clip(self.data.xquat[hand], -1.0, 1.0),
+            "qpos": self.data.qpos[self.robot.arm_qpos].copy(),
+            "qvel": self.data.qvel[self.robot.arm_dof].copy(),
+        }
+        obs.update(self._task_obs())
+        return obs
+
+    def _info(self) -> dict[str, Any]:
+        info = {
+            "is_success": self._last_success,
+            "tracking_error": self._tracking_error,
+            "ik_error": self._ik_error,
+            "demo": self.demo,
+            "step": self._step_count,
+            "failure_reason": self._failure_reason,
+        }
+        info.update(self._task_info())
+        return info
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, Any]:
+        size = mujoco.mj_stateSize(self.model, _STATE_SPEC)
+        physics = np.empty(size)
+        mujoco.mj_getState(self.model, self.data, physics, _STATE_SPEC)
+        return {
+            "ctor_args": self._ctor_args,
+            "np_random": self._np_random.bit_generator.state if self._np_random else None,
+            "np_random_seed": self._np_random_seed,
+            "physics": physics,
+            "warnings": np.array([[w.number, w.lastinfo] for w in self.data.warning]),
+            "tracker_q": self.tracker.configuration.q.copy(),
+            "tracker_posture": self.tracker.posture_task.target_q.copy(),
+            "episode": {k: getattr(self, k) for k in (
+                "demo", "horizon", "_step_count", "_q_ref_prev", "_failure_reason",
+                "_last_success", "_tracking_error", "_ik_error", "_target_pos", "_target_quat",
+                "_warn_base")},
+            "task": self._task_state(),
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        args, kwargs = state["ctor_args"]
+        self._ctor_args = (args, kwargs)
+        self.__init__(*args, **kwargs)
+        if state["np_random"] is not None:
+            self._np_random = np.random.Generator(np.random.PCG64())
+            self._np_random.bit_generator.state = state["np_random"]
+            self._np_random_seed = state["np_random_seed"]
+        mujoco.mj_setState(self.model, self.data, state["physics"], _STATE_SPEC)
+        for w, (number, lastinfo) in zip(self.data.warning, state["warnings"], strict=True):
+            w.number, w.lastinfo = int(number), int(lastinfo)
+        mujoco.mj_forward(self.model, self.data)
+        self.tracker.configuration.update(state["tracker_q"])
+        self.tracker.posture_task.set_target(state["tracker_posture"])
+        for k, v in state["episode"].items():
+            setattr(self, k, v)
+        self.tracker.set_target(self._target_pos, self._target_quat)
+        self._restore_task_state(state["task"])

@@ -1,0 +1,120 @@
+"""Gymnasium registration of every clfd-bench environment (namespace `clfd`).
+
+Ids (all `-v0`):
+
+| id | task | entry point |
+|---|---|---|
+| `clfd/BoxOpening-v0` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
+| `clfd/BottleShelving-v0` | RoboTasks `bottle2shelf` | same |
+| `clfd/PlateStacking-v0` | RoboTasks `platestandingtolying` | same |
+| `clfd/Pouring-v0` | RoboTasks `pouring` | same |
+| `clfd/HelloWorld-<letter>-v0` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
+| `clfd/HelloWorld-v0` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
+| `clfd/LASA-<Shape>-v0` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
+
+LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v0`, `clfd/LASA-heee-v0`): every
+one of the paper's 26 names uses only letters, digits and `_`, which Gymnasium ids allow.
+`lasa_env_name` refuses names with other characters rather than guess a mapping.
+
+`register_envs()` is idempotent and imports no env module (entry points are strings), so
+registering is cheap; a missing entry point fails when that id is made.
+"""
+
+from __future__ import annotations
+
+import re
+
+import gymnasium as gym
+
+NAMESPACE = "clfd"
+VERSION = 0
+
+#: RoboTasks env name -> dataset task name.
+ROBOTASKS_ENVS: dict[str, str] = {
+    "BoxOpening": "openbox",
+    "BottleShelving": "bottle2shelf",
+    "PlateStacking": "platestandingtolying",
+    "Pouring": "pouring",
+}
+ROBOTASKS_ENTRY_POINT = "clfd_bench.envs.robotasks:RoboTaskEnv"
+HELLOWORLD_LETTERS: tuple[str, ...] = ("h", "e", "l", "o", "w", "r", "d")
+#: The paper's 26 LASA shapes (alphabetical, case-insensitive, as the data layer orders them).
+LASA_SHAPES: tuple[str, ...] = (
+    "Angle", "BendedLine", "CShape", "DoubleBendedLine", "GShape", "heee", "JShape",
+    "JShape_2", "Khamesh", "Leaf_1", "Leaf_2", "Line", "LShape", "NShape", "PShape", "RShape",
+    "Saeghe", "Sharpc", "Sine", "Snake", "Spoon", "Sshape", "Trapezoid", "Worm", "WShape",
+    "Zshape",
+)
+WRITING_MODULE = "clfd_bench.envs.writing"
+_VALID_NAME = re.compile(r"^[A-Za-z0-9_]+$")
+
+
+def _env_id(name: str) -> str:
+    return f"{NAMESPACE}/{name}-v{VERSION}"
+
+
+def lasa_env_name(shape: str) -> str:
+    """The id part of a LASA shape (the name itself; it must be letters, digits and `_`)."""
+    if not _VALID_NAME.match(shape):
+        raise ValueError(f"LASA shape name {shape!r} has characters a Gymnasium id cannot hold; "
+                         "only letters, digits and '_' are supported")
+    return f"LASA-{shape}"
+
+
+def env_specs() -> dict[str, tuple[str, dict]]:
+    """Every clfd-bench env: {id: (entry point, kwargs)}."""
+    specs: dict[str, tuple[str, dict]] = {}
+    for name, task in ROBOTASKS_ENVS.items():
+        specs[_env_id(name)] = (ROBOTASKS_ENTRY_POINT, {"task": task})
+    for letter in HELLOWORLD_LETTERS:
+        specs[_env_id(f"HelloWorld-{letter}")] = (f"{WRITING_MODULE}:HelloWorldLetterEnv",
+                                                  {"letter": letter})
+    specs[_env_id("HelloWorld")] = (f"{WRITING_MODULE}:HelloWorldTextEnv", {})
+    for shape in LASA_SHAPES:
+        specs[_env_id(lasa_env_name(shape))] = (f"{WRITING_MODULE}:LasaShapeEnv",
+                                                {"shape": shape})
+    return specs
+
+
+def register_envs() -> list[str]:
+    """Registers every clfd-bench id with Gymnasium (idempotent). Returns the ids."""
+    ids = []
+    for env_id, (entry_point, kwargs) in env_specs().items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs))
+        ids.append(env_id)
+    return ids
+
+
+def registered_env_ids() -> list[str]:
+    """The clfd-bench ids currently in the Gymnasium registry, sorted."""
+    return sorted(i for i in gym.registry if i.startswith(f"{NAMESPACE}/"))
+
+
+def env_id_for(dataset: str, task_name: str) -> str:
+    """The env id that executes a task of a dataset.
+
+    Args:
+        dataset: "helloworld", "lasa", "robotasks" or "robotasks9".
+        task_name: the data layer's task name ("h", "Angle", "openbox", ...).
+
+    Raises:
+        KeyError: the dataset or task has no env; the message lists the valid names.
+    """
+    ds = dataset.lower()
+    if ds == "helloworld":
+        if task_name not in HELLOWORLD_LETTERS:
+            raise KeyError(f"HelloWorld has no letter {task_name!r}; valid: {HELLOWORLD_LETTERS}")
+        return _env_id(f"HelloWorld-{task_name}")
+    if ds == "lasa":
+        if task_name not in LASA_SHAPES:
+            raise KeyError(f"no LASA env for shape {task_name!r}; valid: {LASA_SHAPES}")
+        return _env_id(lasa_env_name(task_name))
+    if ds in ("robotasks", "robotasks9"):
+        by_task = {task: name for name, task in ROBOTASKS_ENVS.items()}
+        if task_name not in by_task:
+            raise KeyError(f"no simulated env for {dataset} task {task_name!r}; tasks with an env: "
+                           f"{sorted(by_task)}")
+        return _env_id(by_task[task_name])
+    raise KeyError(f"no envs for dataset {dataset!r}; valid: ['helloworld', 'lasa', 'robotasks', "
+                   "'robotasks9']")

@@ -1,0 +1,632 @@
+"""Writing environments: HelloWorld letters, the HelloWorld text, and LASA shapes, drawn with a
+spring-loaded pen on a writing board. The scene and every constant are in `tasks/writing.xml`
+and `tasks/writing.toml`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import pathlib
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from clfd_bench.envs.base import CONTROL_HZ, PandaEnv, load_task
+from clfd_bench.resources import resource_path
+from clfd_bench.sim.render import CameraSpec, add_segments
+from clfd_bench.sim.robot import (
+    HOME_QPOS,
+    PEN_SLIDE_JOINT,
+    PEN_TIP_OFFSET,
+    PEN_TIP_SITE,
+    robot_model,
+)
+from clfd_bench.sim.start_configs import solve_configuration
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+WRITING_SPEC_FILE = "writing.toml"
+#: Physics step of the writing envs: 6 substeps per 60 Hz control period (2.8 ms). The pen's
+#: contact tracks as at 2 ms (same ink to 0.01 mm) and the envs run ~20 % faster.
+PHYSICS_DT = 1.0 / 60.0 / 6
+#: HelloWorld text: a step with lift below this is "pen commanded down".
+PEN_DOWN_LIFT = 0.05
+#: Steps the pen holds its last point after the trajectory, part of the default horizon.
+SETTLE_STEPS = 60
+
+
+@dataclasses.dataclass(frozen=True)
+class WritingSpec:
+    """The contents of `tasks/writing.toml` (see the comments there)."""
+
+    xml: str
+    surface_height: float
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+    hand_quat: tuple[float, float, float, float]
+    press_depth: float
+    ink_height: float
+    lift_height: float
+    min_ink_fraction: float
+    dtw_threshold: str
+    goal_tolerance: float
+    lasa_center: tuple[float, float]
+    text_default: str
+    text_scale: float
+    text_reference: tuple[float, float]
+    text_first_slot: tuple[float, float]
+    text_advance: tuple[float, float]
+    text_lift_steps: int
+    text_travel_steps: int
+
+    @property
+    def low(self) -> np.ndarray:
+        return np.array([self.x_range[0], self.y_range[0]])
+
+    @property
+    def high(self) -> np.ndarray:
+        return np.array([self.x_range[1], self.y_range[1]])
+
+
+@functools.lru_cache(maxsize=1)
+def load_writing_spec() -> WritingSpec:
+    """Reads `tasks/writing.toml`."""
+    path = resource_path("tasks", WRITING_SPEC_FILE)
+    with open(path, "rb") as fh:
+        doc = tomllib.load(fh)
+    try:
+        s, p, ok, la, tx = (doc["surface"], doc["pen"], doc["success"], doc["lasa"], doc["text"])
+        spec = WritingSpec(
+            xml=s["xml"], surface_height=float(s["height"]), x_range=tuple(s["x_range"]),
+            y_range=tuple(s["y_range"]), hand_quat=tuple(p["hand_quat"]),
+            press_depth=float(p["press_depth"]), ink_height=float(p["ink_height"]),
+            lift_height=float(p["lift_height"]), min_ink_fraction=float(ok["min_ink_fraction"]),
+            dtw_threshold=ok["dtw_threshold"], goal_tolerance=float(ok["goal_tolerance"]),
+            lasa_center=tuple(la["center"]), text_default=tx["default"],
+            text_scale=float(tx["scale"]), text_reference=tuple(tx["reference"]),
+            text_first_slot=tuple(tx["first_slot"]), text_advance=tuple(tx["advance"]),
+            text_lift_steps=int(tx["lift_steps"]), text_travel_steps=int(tx["travel_steps"]))
+    except KeyError as exc:
+        raise ValueError(f"{path}: missing key {exc}; see the keys documented in the file") from exc
+    if spec.dtw_threshold != "paper":
+        raise ValueError(f"{path}: success.dtw_threshold must be 'paper', got "
+                         f"{spec.dtw_threshold!r}")
+    return spec
+
+
+def ink_strokes(pen_down: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the runs of True in `pen_down` [T]."""
+    d = np.diff(np.concatenate([[0], pen_down.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(),
+                    strict=True))
+
+
+class _WritingBase(PandaEnv):
+    """Shared machinery of the writing envs (pen, board, ink)."""
+
+    tool = "pen"
+    dataset = ""
+
+    def __init__(self, render_mode: str | None = None, *, physics_dt: float = PHYSICS_DT,
+                 ik_iterations: int = 1, width: int = 640, height: int = 480):
+        self.wspec = load_writing_spec()
+        self._start_cache: dict[int, np.ndarray] = {}
+        self._ink_xy: list[np.ndarray] = []
+        self._ink_flags: list[bool] = []
+        self._ink_count = 0
+        self._commanded_down: list[bool] = []
+        self._decision: dict[str, Any] | None = None
+        super().__init__(render_mode, physics_dt=physics_dt, ik_iterations=ik_iterations,
+                         width=width, height=height)
+
+    # -- scene
+    def _task_xml(self) -> pathlib.Path:
+        return resource_path("tasks", self.wspec.xml)
+
+    def _bind(self) -> None:
+        m = self.model
+        self._tip_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, PEN_TIP_SITE)
+        slide = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, PEN_SLIDE_JOINT)
+        self._slide_qpos = m.jnt_qposadr[slide]
+        self._hand_quat = np.array(self.wspec.hand_quat, dtype=float)
+        self._hand_quat /= np.linalg.norm(self._hand_quat)
+        self._pen_z = self.wspec.surface_height + PEN_TIP_OFFSET - self.wspec.press_depth
+
+    def camera(self) -> CameraSpec:
+        # Looking along -y: the writing direction of the HelloWorld data (-x) reads left to
+        # right and the page's "up" (-y) is up in the image.
+        return CameraSpec(lookat=(0.45, 0.0, 0.1), distance=1.1, azimuth=270.0, elevation=-60.0)
+
+    def _decorate(self, scene: mujoco.MjvScene) -> None:
+        if not self._ink_xy:
+            return
+        xy = np.array(self._ink_xy)
+        z = self.wspec.surface_height + 0.0005
+        for a, b in ink_strokes(np.array(self._ink_flags)):
+            if b - a >= 2:
+                add_segments(scene, np.hstack([xy[a:b], np.full((b - a, 1), z)]),
+                             max_segments=max(1, (b - a) // 2))
+
+    # -- geometry helpers
+    def hand_target(self, xy: np.ndarray, lift: float = 0.0) -> np.ndarray:
+        """Hand position [3] that puts the pen tip at surface point `xy` [2] (pressed by
+        `press_depth`), raised by `lift` × `lift_height`."""
+        return np.array([xy[0], xy[1], self._pen_z + lift * self.wspec.lift_height])
+
+    def _solve_start(self, xy: np.ndarray) -> np.ndarray:
+        q, pos_err, _ = solve_configuration(robot_model(self.tool), self.hand_target(xy),
+                                            self._hand_quat, initial_q=HOME_QPOS)
+        if pos_err > 1e-3:
+            raise ValueError(f"start point {xy.tolist()} is not reachable with the pen down "
+                             f"(IK error {pos_err:.4f} m); check tasks/writing.toml placement")
+        return q
+
+    def _start_point(self, demo: int) -> np.ndarray:
+        raise NotImplementedError
+
+    def _start_qpos(self, demo: int) -> np.ndarray:
+        if demo not in self._start_cache:
+            self._start_cache[demo] = self._solve_start(self._start_point(demo))
+        return self._start_cache[demo]
+
+    def _reset_task(self, demo: int) -> None:
+        # Spring pre-compressed so the tip rests exactly on the surface.
+        self.data.qpos[self._slide_qpos] = -self.wspec.press_depth
+        self._ink_xy, self._ink_flags, self._commanded_down = [], [], []
+        self._ink_count = 0
+        self._decision = None
+
+    def _default_horizon(self, demo: int) -> int:
+        return self._trajectory_steps(demo) + SETTLE_STEPS
+
+    def _trajectory_steps(self, demo: int) -> int:
+        raise NotImplementedError
+
+    # -- ink
+    def _pen_tip(self) -> np.ndarray:
+        return self.data.site_xpos[self._tip_site]
+
+    def _inking(self) -> bool:
+        tip = self._pen_tip()
+        w = self.wspec
+        return bool(tip[2] <= w.surface_height + w.ink_height
+                    and w.x_range[0] <= tip[0] <= w.x_range[1]
+                    and w.y_range[0] <= tip[1] <= w.y_range[1])
+
+    def _after_step(self) -> None:
+        inked = self._inking()
+        self._ink_count += inked
+        self._ink_flags.append(inked)
+        self._ink_xy.append(self._pen_tip()[:2].copy())
+        self._decision = None
+
+    def ink_trace(self) -> np.ndarray:
+        """The ink so far: pen tip points [K, 2] (surface, m) of the steps the pen was down."""
+        if not self._ink_xy:
+            return np.zeros((0, 2))
+        flags = np.array(self._ink_flags)
+        return np.array(self._ink_xy)[flags]
+
+    def _task_observation_space(self) -> dict[str, spaces.Space]:
+        return {"pen_tip": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+                "pen_down": spaces.Box(0.0, 1.0, (1,), np.float64)}
+
+    def _task_obs(self) -> dict[str, np.ndarray]:
+        down = self._ink_flags[-1] if self._ink_flags else self._inking()
+        return {"pen_tip": self._pen_tip().copy(), "pen_down": np.array([float(down)])}
+
+    def _ink_fraction(self) -> float:
+        return self._ink_count / len(self._ink_flags) if self._ink_flags else 0.0
+
+    def _is_success(self, final: bool) -> bool:
+        if not final:
+            return False
+        if self._decision is None:
+            self._decision = self._decide()
+        return bool(self._decision["is_success"])
+
+    def _decide(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _task_info(self) -> dict[str, Any]:
+        info: dict[str, Any] = {"ink_fraction": self._ink_fraction()}
+        if self._decision is not None:
+            info.update({k: v for k, v in self._decision.items() if k != "is_success"})
+        return info
+
+    def _task_state(self) -> dict[str, Any]:
+        return {"ink_xy": [p.copy() for p in self._ink_xy], "ink_flags": list(self._ink_flags),
+                "commanded_down": list(self._commanded_down),
+                "start_cache": dict(self._start_cache),
+                "decision": self._decision}
+
+    def _restore_task_state(self, state: dict[str, Any]) -> None:
+        self._ink_xy = state["ink_xy"]
+        self._ink_flags = state["ink_flags"]
+        self._ink_count = int(sum(self._ink_flags))
+        self._commanded_down = state["commanded_down"]
+        self._start_cache = state["start_cache"]
+        self._decision = state["decision"]
+
+
+class _ShapeEnv(_WritingBase):
+    """One 2-D shape (a HelloWorld letter or a LASA shape): action = pen point on the board."""
+
+    def __init__(self, name: str, render_mode: str | None = None, **kwargs: Any):
+        self.task_name = name
+        task = load_task(self.dataset, name)
+        demos, self.sim_scale = np.asarray(task.demos, dtype=float), float(task.sim_scale)
+        self.goal = np.asarray(task.goal, dtype=float)
+        if demos.ndim != 3 or demos.shape[-1] != 2:
+            raise ValueError(f"{self.dataset}/{name}: expected 2-D demos [N, T, 2], got "
+                             f"{demos.shape}")
+        self.demos = demos
+        self.offset = self._offset(demos)
+        super().__init__(render_mode, **kwargs)
+        from clfd_bench.metrics.thresholds import threshold
+
+        self.dtw_threshold = threshold(self.dataset, "dtw", self.data_units)
+
+    data_units = "m"
+
+    def _offset(self, demos: np.ndarray) -> np.ndarray:
+        return np.zeros(2)
+
+    @property
+    def num_demos(self) -> int:
+        return int(self.demos.shape[0])
+
+    def to_surface(self, points: np.ndarray) -> np.ndarray:
+        """Data units [..., 2] -> surface point [..., 2] (m, base frame)."""
+        return np.asarray(points, dtype=float) * self.sim_scale + self.offset
+
+    def to_data(self, xy: np.ndarray) -> np.ndarray:
+        """Surface point [..., 2] (m) -> data units [..., 2]."""
+        return (np.asarray(xy, dtype=float) - self.offset) / self.sim_scale
+
+    def _start_point(self, demo: int) -> np.ndarray:
+        return self.to_surface(self.demos[demo, 0])
+
+    def _trajectory_steps(self, demo: int) -> int:
+        return int(self.demos.shape[1])
+
+    def _action_space(self) -> spaces.Box:
+        return spaces.Box(self.wspec.low, self.wspec.high, dtype=np.float64)
+
+    def _action_to_target(self, action: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, float | None]:
+        xy = np.clip(action, self.wspec.low, self.wspec.high)
+        return self.hand_target(xy), self._hand_quat, None
+
+    def trajectory_to_actions(self, trajectory: np.ndarray) -> np.ndarray:
+        """Trajectory [T, 2] in data units -> actions [T, 2] (surface points, m)."""
+        traj = np.asarray(trajectory, dtype=float)
+        if traj.ndim != 2 or traj.shape[1] != 2:
+            raise ValueError(f"{type(self).__name__} expects a 2-D trajectory [T, 2] in "
+                             f"{self.dataset} units, got shape {traj.shape}")
+        return self.to_surface(traj)
+
+    def target(self) -> np.ndarray:
+        """The current episode's target: demo `self.demo` [T, 2], data units."""
+        return self.demos[self.demo]
+
+    def demo_trajectory(self, demo: int) -> np.ndarray:
+        return self.demos[demo]
+
+    def _decide(self) -> dict[str, Any]:
+        from clfd_bench.metrics.trajectory import dtw
+
+        ink = self.to_data(self.ink_trace())
+        frac = self._ink_fraction()
+        out: dict[str, Any] = {"ink_fraction": frac, "dtw": float("inf"),
+                               "dtw_threshold": self.dtw_threshold}
+        if len(ink) >= 2:
+            out["dtw"] = dtw(ink, self.target())
+        extra = self._extra_checks(ink, out)
+        ok = frac >= self.wspec.min_ink_fraction and out["dtw"] <= self.dtw_threshold and extra
+        out["is_success"] = bool(ok)
+        return out
+
+    def _extra_checks(self, ink: np.ndarray, out: dict[str, Any]) -> bool:
+        """The last ink point is within `goal_tolerance` (m on the surface) of the goal."""
+        if len(ink) == 0:
+            out["goal_distance"] = float("inf")
+            return False
+        out["goal_distance"] = float(np.linalg.norm(ink[-1] - self.goal))
+        return out["goal_distance"] * self.sim_scale <= self.wspec.goal_tolerance
+
+
+class HelloWorldLetterEnv(_ShapeEnv):
+    """## Description
+
+    The Panda, holding a spring-loaded pen, writes one letter of the HelloWorld dataset (h, e, l,
+    o, w, r or d) on a writing board. The letter's data are (x, y) points of the hand in the Panda
+    base frame in metres, recorded while a person guided the robot over a horizontal surface, so
+    the letter is written where the demonstrations were (x ≈ 0.33–0.45 m, y ≈ −0.10–0.09 m).
+    The hand keeps a fixed orientation (pointing down, as in `home`) and a fixed height that
+    presses the pen tip 4 mm into its spring; mink IK tracks the hand target at 60 Hz.
+
+    ## Action Space
+
+    `Box(2,)`, float64: the pen point (x, y) on the board in metres, Panda base frame, bounded
+    by the board (x ∈ [0.15, 0.75], y ∈ [−0.35, 0.35]; `tasks/writing.toml`); actions outside are
+    clipped. For HelloWorld, data units are these coordinates (`trajectory_to_actions` is the
+    identity); one action per data sample (60 Hz).
+
+    ## Observation Space
+
+    `Dict`: `ee_pos` [3] and `ee_quat` [4] (w, x, y, z) of the `hand` body, `qpos` [7] and
+    `qvel` [7] of the arm joints, `pen_tip` [3] (the tip point on the sprung nib, m),
+    `pen_down` [1] (1.0 when the tip is on the board this step).
+
+    ## Rewards
+
+    Sparse: 1.0 on the step where success is decided true (the episode's last step), else 0.
+
+    ## Episode End
+
+    Truncated after the demo length (1000 steps) + 60 settle steps, or the `horizon` reset option.
+    Terminated only by a physics blow-up (`info["failure_reason"]`). Success (decided at the end
+    or by `evaluate()`): the ink trace (pen tip points of the steps the pen touched the board)
+    matches the target demo `reset(options={"demo": j})` with DTW ≤ the paper's HelloWorld
+    threshold (1821 cm = 18.21 m, computed in metres), the pen was on the board for ≥ 90 % of
+    the steps, and the last ink point lies within 1 cm of the letter's end point (the common
+    end point of its demos: the letter was finished). `info` reports `ink_fraction`, `dtw`,
+    `dtw_threshold`, `goal_distance` (m).
+
+    ## Arguments
+
+    `letter` (h, e, l, o, w, r, d), `render_mode` (None | "rgb_array"), `physics_dt` (1/360 s),
+    `ik_iterations` (1), `width`, `height`.
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+    dataset = "helloworld"
+    data_units = "m"
+
+    def __init__(self, letter: str = "h", render_mode: str | None = None, **kwargs: Any):
+        self.letter = letter
+        super().__init__(letter, render_mode, **kwargs)
+
+
+class LasaShapeEnv(_ShapeEnv):
+    """## Description
+
+    The Panda, holding a spring-loaded pen, draws one of the paper's 26 LASA handwriting shapes
+    on the writing board of the HelloWorld tasks. Shape points p (LASA units) are laid on the
+    board at `sim_scale · p + offset` (`sim_scale` from the data layer, 0.003 m per unit; the
+    offset centres the bounding box of the shape's demos at (0.45, 0.0) m, `tasks/writing.toml`),
+    so the goal (LASA's origin) lies at `offset`.
+
+    ## Action Space
+
+    `Box(2,)`, float64: the pen point (x, y) on the board in metres, Panda base frame (x ∈
+    [0.15, 0.75], y ∈ [−0.35, 0.35]); clipped to the board. `trajectory_to_actions` maps LASA
+    units to it. One action per data sample, executed at 60 Hz.
+
+    ## Observation Space
+
+    As `clfd/HelloWorld-<letter>-v0`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
+
+    ## Rewards
+
+    Sparse: 1.0 on the step where success is decided true (the episode's last step), else 0.
+
+    ## Episode End
+
+    Truncated after the demo length (1000 steps) + 60 settle steps (or the `horizon` reset
+    option); terminated only by a physics blow-up. Success: DTW between the ink trace and the
+    target demo, both in LASA units, ≤ the paper's LASA threshold (2191); the pen on the board
+    for ≥ 90 % of the steps; and the last ink point within 1 cm on the board (3.3 LASA units) of
+    the goal (LASA's origin). `info` reports `ink_fraction`, `dtw`, `dtw_threshold`,
+    `goal_distance` (LASA units).
+
+    ## Arguments
+
+    `shape` (a LASA name, e.g. "Angle", "JShape_2", "heee"), `render_mode`, `physics_dt`,
+    `ik_iterations`, `width`, `height`.
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+    dataset = "lasa"
+    data_units = "lasa"
+
+    def __init__(self, shape: str = "Angle", render_mode: str | None = None, **kwargs: Any):
+        self.shape = shape
+        super().__init__(shape, render_mode, **kwargs)
+
+    def camera(self) -> CameraSpec:
+        # Looking along +y from above: LASA's x axis points right and its y axis up.
+        return CameraSpec(lookat=(0.45, 0.0, 0.1), distance=1.0, azimuth=90.0, elevation=-75.0)
+
+    def _offset(self, demos: np.ndarray) -> np.ndarray:
+        spec = load_writing_spec()
+        lo, hi = demos.min(axis=(0, 1)), demos.max(axis=(0, 1))
+        return np.array(spec.lasa_center) - self.sim_scale * (lo + hi) / 2.0
+
+
+class HelloWorldTextEnv(_WritingBase):
+    """## Description
+
+    The Panda writes a whole text (default "hello world") letter by letter with the pen, as the
+    paper does on the real robot: each letter's trajectory (HelloWorld data, metres) is scaled
+    by a constant (0.3) about a constant reference point and translated to the letter's slot
+    along a line (`tasks/writing.toml` [text]; in the data's frame the writing direction is −x).
+    The hand keeps a fixed orientation and height; between letters the pen lifts, travels to the
+    next letter's start and lowers again.
+
+    ## Action Space
+
+    `Box(3,)`, float64: (x, y) pen point on the board in metres (clipped to the board) and
+    `lift` ∈ [0, 1]: 0 = pen on the surface, 1 = raised by `lift_height` (3 cm). A step with
+    lift < 0.05 is "pen commanded down"; each maximal run of such steps is one written letter.
+    `trajectory_to_actions(letters)` builds the actions from one trajectory per letter (spaces
+    skipped): a list of [T_k, 2] arrays or an array [L, T, 2] in HelloWorld data units, in the
+    order of the text; it inserts the lift / travel / lower moves.
+
+    ## Observation Space
+
+    As `clfd/HelloWorld-<letter>-v0`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
+
+    ## Rewards
+
+    Sparse: 1.0 on the step where success is decided true (the episode's last step), else 0.
+
+    ## Episode End
+
+    Truncated after the full schedule for 1000-sample letters + 60 settle steps (or the `horizon`
+    reset option); terminated only by a physics blow-up. Success: there are as many pen-down
+    runs as letters, and for every letter the ink of its run, mapped back to HelloWorld data
+    units, has DTW ≤ 18.21 m (the paper's 1821 cm) to demo j of that letter and ends within
+    1 cm (letter units; 3 mm on the board) of the letter's end point, and the pen was on the
+    board for ≥ 90 % of the pen-down steps. `info["letter_dtw"]` and
+    `info["letter_goal_distance"]` list them per letter.
+
+    ## Arguments
+
+    `text` (default "hello world"; letters h, e, l, o, w, r, d and spaces), `render_mode`,
+    `physics_dt`, `ik_iterations`, `width`, `height`.
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+    dataset = "helloworld"
+
+    def __init__(self, text: str | None = None, render_mode: str | None = None,
+                 **kwargs: Any):
+        spec = load_writing_spec()
+        self.text = spec.text_default if text is None else text
+        letters = [c for c in self.text if c != " "]
+        if not letters:
+            raise ValueError("text has no letters; pass e.g. text='hello world'")
+        self._demos: dict[str, np.ndarray] = {}
+        self._goals: dict[str, np.ndarray] = {}
+        for c in sorted(set(letters)):
+            task = load_task("helloworld", c)
+            self._demos[c] = np.asarray(task.demos, dtype=float)
+            self._goals[c] = np.asarray(task.goal, dtype=float)
+        self.letters = letters
+        # Slot origin of each letter (character index in the text, spaces take a slot).
+        first, adv = np.array(spec.text_first_slot), np.array(spec.text_advance)
+        self.slots = np.array([first + k * adv for k, c in enumerate(self.text) if c != " "])
+        self.scale = spec.text_scale
+        self.reference = np.array(spec.text_reference)
+        super().__init__(render_mode, **kwargs)
+        from clfd_bench.metrics.thresholds import threshold
+
+        self.dtw_threshold = threshold("helloworld", "dtw", "m")
+
+    @property
+    def num_demos(self) -> int:
+        return int(min(d.shape[0] for d in self._demos.values()))
+
+    def letter_to_surface(self, k: int, points: np.ndarray) -> np.ndarray:
+        """Letter k's points [..., 2] (data, m) -> surface [..., 2] (m)."""
+        return self.slots[k] + self.scale * (np.asarray(points, dtype=float) - self.reference)
+
+    def surface_to_letter(self, k: int, xy: np.ndarray) -> np.ndarray:
+        """Surface points [..., 2] in letter k's slot -> letter data units [..., 2] (m)."""
+        return (np.asarray(xy, dtype=float) - self.slots[k]) / self.scale + self.reference
+
+    def demo_letters(self, demo: int) -> list[np.ndarray]:
+        """Demo `demo` of every letter of the text, [T, 2] each (data units)."""
+        return [self._demos[c][demo] for c in self.letters]
+
+    def demo_trajectory(self, demo: int) -> list[np.ndarray]:
+        """The rollout input that writes demo `demo` of every letter: one [T, 2] per letter."""
+        return self.demo_letters(demo)
+
+    def _start_point(self, demo: int) -> np.ndarray:
+        return self.letter_to_surface(0, self._demos[self.letters[0]][demo, 0])
+
+    def _trajectory_steps(self, demo: int) -> int:
+        lengths = [self._demos[c].shape[1] for c in self.letters]
+        w = self.wspec
+        return int(sum(lengths) + (len(lengths) - 1) * (2 * w.text_lift_steps
+                                                         + w.text_travel_steps))
+
+    def _action_space(self) -> spaces.Box:
+        return spaces.Box(np.append(self.wspec.low, 0.0), np.append(self.wspec.high, 1.0),
+                          dtype=np.float64)
+
+    def _action_to_target(self, action: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, float | None]:
+        xy = np.clip(action[:2], self.wspec.low, self.wspec.high)
+        lift = float(np.clip(action[2], 0.0, 1.0))
+        self._commanded_down.append(lift < PEN_DOWN_LIFT)
+        return self.hand_target(xy, lift), self._hand_quat, None
+
+    def trajectory_to_actions(self, trajectory: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
+        """Per-letter trajectories (list of [T_k, 2] or [L, T, 2], data units, one per letter
+        of the text without spaces) -> actions [T_total, 3] with pen lifts between letters."""
+        letters = list(trajectory)
+        if len(letters) != len(self.letters):
+            raise ValueError(f"text {self.text!r} has {len(self.letters)} letters; got "
+                             f"{len(letters)} trajectories (one [T, 2] array per letter)")
+        w = self.wspec
+        out: list[np.ndarray] = []
+        prev_end: np.ndarray | None = None
+        for k, traj in enumerate(letters):
+            traj = np.asarray(traj, dtype=float)
+            if traj.ndim != 2 or traj.shape[1] != 2 or len(traj) < 1:
+                raise ValueError(f"letter {k} ({self.letters[k]!r}): expected [T, 2], got "
+                                 f"{traj.shape}")
+            xy = self.letter_to_surface(k, traj)
+            if prev_end is not None:
+                s = np.linspace(0, 1, w.text_lift_steps + 1)[1:, None]
+                up = np.hstack([np.repeat(prev_end[None], len(s), 0), s])
+                t = np.linspace(0, 1, w.text_travel_steps + 1)[1:, None]
+                travel = np.hstack([prev_end + t * (xy[0] - prev_end), np.ones_like(t)])
+                down = np.hstack([np.repeat(xy[0][None], len(s), 0), 1.0 - s])
+                out += [up, travel, down]
+            out.append(np.hstack([xy, np.zeros((len(xy), 1))]))
+            prev_end = xy[-1]
+        return np.concatenate(out)
+
+    def settle_actions(self, last_action: np.ndarray, steps: int) -> np.ndarray:
+        return np.repeat(np.asarray(last_action, dtype=float)[None], steps, axis=0)
+
+    def _decide(self) -> dict[str, Any]:
+        from clfd_bench.metrics.trajectory import dtw
+
+        down = np.array(self._commanded_down[: len(self._ink_flags)], dtype=bool)
+        flags = np.array(self._ink_flags, dtype=bool)
+        xy = np.array(self._ink_xy) if self._ink_xy else np.zeros((0, 2))
+        runs = ink_strokes(down)
+        frac = float(flags[down].mean()) if down.any() else 0.0
+        out: dict[str, Any] = {"ink_fraction": frac, "strokes": len(runs),
+                               "dtw_threshold": self.dtw_threshold, "letter_dtw": [],
+                               "letter_goal_distance": []}
+        ok = len(runs) == len(self.letters) and frac >= self.wspec.min_ink_fraction
+        targets = self.demo_letters(self.demo)
+        for k, (a, b) in enumerate(runs[: len(self.letters)]):
+            ink = self.surface_to_letter(k, xy[a:b][flags[a:b]])
+            d = dtw(ink, targets[k]) if len(ink) >= 2 else float("inf")
+            g = (float(np.linalg.norm(ink[-1] - self._goals[self.letters[k]])) if len(ink)
+                 else float("inf"))
+            out["letter_dtw"].append(d)
+            out["letter_goal_distance"].append(g)
+            ok = ok and d <= self.dtw_threshold and g <= self.wspec.goal_tolerance
+        out["is_success"] = bool(ok)
+        return out
+
+
+def writing_settle_s() -> float:
+    """Seconds of settling the writing envs' default horizon includes."""
+    return SETTLE_STEPS / CONTROL_HZ

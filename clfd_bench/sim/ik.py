@@ -1,0 +1,238 @@
+"""Pose tracking with mink differential IK.
+
+`PoseTracker` follows a stream of target poses of one frame (the Panda `hand` body by default)
+at the control rate: each `track()` call runs a few mink QP iterations (FrameTask + PostureTask,
+ConfigurationLimit + VelocityLimit) from the previous solution and returns the arm joint
+command. Unreachable targets are tracked as closely as the limits allow and the remaining
+error is reported; nothing raises for them.
+"""
+
+from __future__ import annotations
+
+import daqp
+import mink
+import mujoco
+import numpy as np
+
+from clfd_bench.sim.robot import ARM_JOINTS, HOME_QPOS, JOINT_VELOCITY_LIMITS, RobotIndex
+
+
+def _check_finite(name: str, x: np.ndarray) -> None:
+    bad = ~np.isfinite(x)
+    if bad.any():
+        raise ValueError(f"{name} has non-finite entries at indices {np.flatnonzero(bad).tolist()}"
+                         f" (values {x[bad].tolist()}); pass finite numbers")
+
+
+def quat_angle(q1: np.ndarray, q2: np.ndarray) -> float:
+    """Rotation angle (rad, in [0, pi]) between two unit quaternions [4] (w, x, y, z)."""
+    d = abs(float(np.dot(q1, q2)))
+    return 2.0 * float(np.arccos(min(d, 1.0)))
+
+
+class PoseTracker:
+    """Differential-IK tracker of one frame's pose.
+
+    Args:
+        model: a compiled model holding the Panda arm joints `joint1..7`, best the robot-only
+            model (`clfd_bench.sim.robot.robot_model(tool)`): the QP has one variable per DoF,
+            so a scene with free-floating objects makes it slower. DoFs other than the arm's
+            (fingers, pen spring, objects) are held at their `reset` value by the posture task.
+        frame: name of the tracked frame (default the `hand` body, the frame of the data).
+        frame_type: "body", "site" or "geom".
+        posture_cost: cost of the posture task pulling towards the configuration given to
+            `reset` (keeps the arm in its IK branch; also regularises redundancy).
+        position_cost, orientation_cost: FrameTask costs.
+        iterations: QP iterations per `track` call.
+        dt: integration step of one QP iteration, seconds. The velocity limits bound each
+            iteration's motion to `dt * v_max`, so `iterations * dt` should be the control period
+            (default 1 × 1/60 s) for physically consistent joint speeds.
+        solver: a qpsolvers solver name ("daqp" default).
+        velocity_limits: apply the Panda's joint velocity limits (datasheet values).
+        lm_damping: Levenberg-Marquardt damping of the frame task (helps near singularities and
+            for unreachable targets).
+    """
+
+    def __init__(self, model, frame: str = "hand", frame_type: str = "body",
+                 posture_cost: float = 1e-3, position_cost: float = 1.0,
+                 orientation_cost: float = 1.0, iterations: int = 1, dt: float = 1.0 / 60.0,
+                 solver: str = "daqp", velocity_limits: bool = True, lm_damping: float = 1e-4):
+        if iterations < 1:
+            raise ValueError(f"iterations must be >= 1, got {iterations}")
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        self.model = model
+        self.frame = frame
+        self.frame_type = frame_type
+        self.iterations = int(iterations)
+        self.dt = float(dt)
+        self.solver = solver
+        self.index = RobotIndex(model)
+        kinds = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE,
+                 "geom": mujoco.mjtObj.mjOBJ_GEOM}
+        if frame_type not in kinds:
+            raise ValueError(f"frame_type must be one of {sorted(kinds)}, got {frame_type!r}")
+        self._frame_kind = kinds[frame_type]
+        self._frame_id = mujoco.mj_name2id(model, self._frame_kind, frame)
+        if self._frame_id < 0:
+            raise ValueError(f"model has no {frame_type} named {frame!r}")
+        self._sense: np.ndarray | None = None
+        self._blower: np.ndarray | None = None
+        self._target_pos: np.ndarray | None = None
+        self._target_quat: np.ndarray | None = None
+        self.configuration = mink.Configuration(model)
+        self.frame_task = mink.FrameTask(frame, frame_type, position_cost=position_cost,
+                                         orientation_cost=orientation_cost,
+                                         lm_damping=lm_damping)
+        self.posture_task = mink.PostureTask(model, cost=posture_cost)
+        self.tasks = [self.frame_task, self.posture_task]
+        self.limits: list = [mink.ConfigurationLimit(model)]
+        self._varying_limits = list(self.limits)
+        self._velocity_limit = None
+        if velocity_limits:
+            vmax = dict(zip(ARM_JOINTS, JOINT_VELOCITY_LIMITS.tolist(), strict=True))
+            self._velocity_limit = mink.VelocityLimit(model, vmax)
+            self.limits.append(self._velocity_limit)
+        self._vel_dt: float | None = None
+        self._vel_G: np.ndarray | None = None
+        self._vel_h: np.ndarray | None = None
+        q0 = model.qpos0.copy()
+        q0[self.index.arm_qpos] = HOME_QPOS
+        self._q_full0 = q0
+        self.reset(HOME_QPOS)
+
+    @property
+    def q(self) -> np.ndarray:
+        """The current arm solution [7]."""
+        return self.configuration.q[self.index.arm_qpos].copy()
+
+    def reset(self, q: np.ndarray, posture: np.ndarray | None = None) -> None:
+        """Restarts tracking from arm configuration `q` [7] (or a full model qpos [nq]).
+
+        Args:
+            q: [7] arm joints (other DoFs from the model's default) or [nq].
+            posture: [7] or [nq] posture target; default `q`.
+        """
+        full = self._full(q)
+        lo, hi = self.index.arm_range[:, 0], self.index.arm_range[:, 1]
+        full[self.index.arm_qpos] = np.clip(full[self.index.arm_qpos], lo, hi)
+        self.configuration.update(full)
+        self.posture_task.set_target(self._full(posture) if posture is not None else full)
+
+    def _full(self, q: np.ndarray) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        _check_finite("configuration", q)
+        if q.shape == (7,):
+            full = self._q_full0.copy()
+            full[self.index.arm_qpos] = q
+            return full
+        if q.shape == (self.model.nq,):
+            return q.copy()
+        raise ValueError(f"configuration must have shape (7,) or ({self.model.nq},), got {q.shape}")
+
+    def set_target(self, target_pos: np.ndarray, target_quat: np.ndarray) -> None:
+        """Sets the frame target: position [3] m, quaternion [4] w,x,y,z (normalised here)."""
+        pos = np.asarray(target_pos, dtype=float).reshape(3)
+        quat = np.asarray(target_quat, dtype=float).reshape(4)
+        if not (np.isfinite(pos).all() and np.isfinite(quat).all()):
+            _check_finite("target position", pos)
+            _check_finite("target quaternion", quat)
+        n = np.linalg.norm(quat)
+        if n < 1e-9:
+            raise ValueError("target quaternion has zero norm; pass a unit quaternion (w, x, y, z)")
+        self._target_pos = pos
+        self._target_quat = quat / n
+        self.frame_task.set_target(mink.SE3(np.concatenate([self._target_quat, pos])))
+
+    def step(self, iterations: int | None = None) -> None:
+        """Runs QP iterations towards the current target (default `self.iterations`)."""
+        for _ in range(self.iterations if iterations is None else iterations):
+            vel = self._solve_velocity()
+            if vel is None:
+                # Infeasible QP (should not happen with these limits): hold the configuration.
+                return
+            self.configuration.integrate_inplace(vel, self.dt)
+
+    def _solve_velocity(self) -> np.ndarray | None:
+        if self.solver != "daqp":
+            try:
+                return mink.solve_ik(self.configuration, self.tasks, self.dt, self.solver,
+                                     limits=self.limits)
+            except mink.NoSolutionFound:
+                return None
+        # Same QP as mink.solve_ik (mink.build_ik), handed to DAQP directly: the qpsolvers
+        # wrapper costs more than the solve for a 7-DoF arm. The velocity limit's inequality is
+        # constant for a fixed dt, so it is computed once and appended.
+        conf = self.configuration
+        problem = mink.build_ik(conf, self.tasks, self.dt, 1e-12, self._varying_limits)
+        if self._vel_dt != self.dt:
+            self._vel_G, self._vel_h = None, None
+            if self._velocity_limit is not None:
+                ineq = self._velocity_limit.compute_qp_inequalities(conf, self.dt)
+                self._vel_G, self._vel_h = ineq.G, ineq.h
+            self._vel_dt = self.dt
+        G, h = problem.G, problem.h
+        if self._vel_G is not None:
+            G = self._vel_G if G is None else np.vstack([G, self._vel_G])
+            h = self._vel_h if h is None else np.concatenate([h, self._vel_h])
+        if G is None:
+            G, h = np.zeros((0, problem.P.shape[0])), np.zeros(0)
+        if self._sense is None or len(self._sense) != len(h):
+            self._sense = np.zeros(len(h), dtype=np.intc)
+            self._blower = np.full(len(h), -1e30)
+        x, _, exitflag, _ = daqp.solve(problem.P, problem.q, G, h, self._blower, self._sense)
+        if exitflag <= 0:
+            return None
+        return x / self.dt
+
+    def error(self) -> tuple[float, float]:
+        """(position error m, rotation error rad) of the current solution to the target."""
+        if self._target_pos is None:
+            raise ValueError("no target set; call set_target or track first")
+        data = self.configuration.data
+        if self._frame_kind == mujoco.mjtObj.mjOBJ_BODY:
+            pos, quat = data.xpos[self._frame_id], data.xquat[self._frame_id]
+        else:
+            site = self._frame_kind == mujoco.mjtObj.mjOBJ_SITE
+            xpos = data.site_xpos if site else data.geom_xpos
+            xmat = data.site_xmat if site else data.geom_xmat
+            pos = xpos[self._frame_id]
+            quat = np.empty(4)
+            mujoco.mju_mat2Quat(quat, xmat[self._frame_id])
+        return float(np.linalg.norm(pos - self._target_pos)), quat_angle(quat, self._target_quat)
+
+    def track(self, target_pos: np.ndarray, target_quat: np.ndarray,
+              iterations: int | None = None) -> tuple[np.ndarray, float, float]:
+        """One control step: move the solution towards the target pose.
+
+        Args:
+            target_pos: [3] metres, base frame.
+            target_quat: [4] w, x, y, z.
+            iterations: QP iterations (default `self.iterations`).
+
+        Returns:
+            (q_cmd [7] arm joint command, position error m, rotation error rad) of the solution.
+        """
+        self.set_target(target_pos, target_quat)
+        self.step(iterations)
+        pos_err, rot_err = self.error()
+        return self.q, pos_err, rot_err
+
+    def solve(self, target_pos: np.ndarray, target_quat: np.ndarray, max_iterations: int = 300,
+              pos_tol: float = 1e-5, rot_tol: float = 1e-4, dt: float = 0.05
+              ) -> tuple[np.ndarray, float, float]:
+        """Converges to a static target (e.g. a start configuration): iterates until the error
+        is under (pos_tol m, rot_tol rad) or `max_iterations`; velocity limits still apply with
+        step `dt`. Returns (q [7], position error m, rotation error rad)."""
+        self.set_target(target_pos, target_quat)
+        old_dt, self.dt = self.dt, dt
+        try:
+            for _ in range(max_iterations):
+                self.step(1)
+                pos_err, rot_err = self.error()
+                if pos_err < pos_tol and rot_err < rot_tol:
+                    break
+        finally:
+            self.dt = old_dt
+        pos_err, rot_err = self.error()
+        return self.q, pos_err, rot_err

@@ -1,0 +1,109 @@
+"""Execute a whole trajectory in a clfd-bench environment and decide success."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from clfd_bench.envs.base import CONTROL_HZ, PandaEnv
+
+#: Default time the scene settles after the trajectory (release, objects coming to rest), s.
+DEFAULT_SETTLE_S = 1.0
+
+
+@dataclasses.dataclass
+class RolloutResult:
+    """Outcome of one `rollout`.
+
+    Attributes:
+        success: the env's success decision after the trajectory and settling.
+        tracking_error_pos: [T] position error (m) of the tracked frame after each trajectory
+            step (NaN after an early end).
+        tracking_error_rot: [T] rotation error (rad), likewise.
+        info: the env's final info dict (with `failure_reason`, None when no failure).
+        frames: rendered frames [H, W, 3] uint8 when `record=True`, else None.
+        ee_path: [T, 3] tracked frame position after each trajectory step (NaN after an
+            early end).
+        steps: number of env steps run (trajectory + settling).
+    """
+
+    success: bool
+    tracking_error_pos: np.ndarray
+    tracking_error_rot: np.ndarray
+    info: dict[str, Any]
+    frames: list[np.ndarray] | None
+    ee_path: np.ndarray
+    steps: int
+
+
+def _unwrap(env: gym.Env) -> PandaEnv:
+    base = env.unwrapped
+    if not isinstance(base, PandaEnv):
+        raise TypeError(f"rollout needs a clfd-bench env (PandaEnv), got {type(base).__name__}")
+    return base
+
+
+def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
+            settle_s: float = DEFAULT_SETTLE_S, record: bool = False, fps: float = 30.0,
+            seed: int | None = None) -> RolloutResult:
+    """Runs `trajectory` through `env` at the data rate (one sample per 60 Hz step), then the
+    env's settle actions for `settle_s` (RoboTasks: gripper opens; writing: pen holds), then
+    decides success.
+
+    Args:
+        env: a clfd-bench env (from `gymnasium.make("clfd/...")` or the class).
+        trajectory: [T, D] in the data units of the env's dataset: 7-D poses (px, py, pz m,
+            qw, qx, qy, qz) for RoboTasks, 2-D points for writing (HelloWorld: m, LASA: native
+            units); for `clfd/HelloWorld-v0`, see its docstring.
+        demo: the demo whose start configuration and scene to reset to (writing: whose
+            trajectory is the target); None draws one with `seed`.
+        settle_s: seconds after the trajectory.
+        record: render frames (needs `render_mode="rgb_array"`).
+        fps: frame rate of the recording (every round(60 / fps)-th step is rendered).
+        seed: reset seed.
+
+    Returns:
+        A `RolloutResult`.
+    """
+    base = _unwrap(env)
+    actions = base.trajectory_to_actions(trajectory)
+    if len(actions) < 1:
+        raise ValueError("trajectory is empty; pass at least one sample")
+    if record and base.render_mode != "rgb_array":
+        raise ValueError("record=True needs an env made with render_mode='rgb_array'")
+    settle_steps = max(0, int(round(settle_s * CONTROL_HZ)))
+    horizon = len(actions) + settle_steps
+    env.reset(seed=seed, options={"demo": demo, "horizon": horizon})
+    every = max(1, int(round(CONTROL_HZ / fps)))
+    frames: list[np.ndarray] | None = [env.render()] if record else None
+    T = len(actions)
+    err_pos = np.full(T, np.nan)
+    err_rot = np.full(T, np.nan)
+    ee_path = np.full((T, 3), np.nan)
+    steps = 0
+    ended = False
+    for t in range(T):
+        obs, _, terminated, truncated, info = env.step(actions[t])
+        steps += 1
+        err_pos[t], err_rot[t] = info["tracking_error"]
+        ee_path[t] = obs["ee_pos"]
+        if record and steps % every == 0:
+            frames.append(env.render())
+        if terminated or truncated:
+            ended = True
+            break
+    if not ended and settle_steps:
+        for action in base.settle_actions(actions[-1], settle_steps):
+            _, _, terminated, truncated, info = env.step(action)
+            steps += 1
+            if record and steps % every == 0:
+                frames.append(env.render())
+            if terminated or truncated:
+                break
+    info = base.evaluate()
+    return RolloutResult(success=bool(info["is_success"]), tracking_error_pos=err_pos,
+                         tracking_error_rot=err_rot, info=info, frames=frames, ee_path=ee_path,
+                         steps=steps)
