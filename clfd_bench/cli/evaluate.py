@@ -1,0 +1,88 @@
+"""``clfd-bench evaluate``: score a saved run by executing its predictions in simulation.
+
+    clfd-bench evaluate runs/hn0 [--rerun runs/hn0/rollouts.rrd]
+
+Executes every saved prediction (after task i, task j <= i, demo d) in task j's environment
+without training, and writes ``success``, ``sim_accuracy``, ``sim_cl_metrics`` (ACC, REM, BWT of
+execution success) and ``sim`` (env ids and versions, mujoco / mink versions) into
+``RUN_DIR/results.json``, keeping everything else. Results are cached per simulator version in
+``RUN_DIR/sim_cache.json``: a second call, or one after an interruption, only executes what is
+missing; a changed simulator re-executes everything.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+__all__ = ["format_summary", "register"]
+
+
+def _fmt(value: Any) -> str:
+    return "  -  " if value is None else f"{value:.2f}"
+
+
+def format_summary(results: dict[str, Any], fields: dict[str, Any]) -> str:
+    """A short text report: execution R matrix and ACC/REM/BWT beside the trajectory ones."""
+    names = results.get("tasks") or []
+    sim = fields["sim"]
+    lines = [
+        f"executed {sim['rollouts']} rollouts ({sim['rollouts_executed']} run, "
+        f"{sim['rollouts_cached']} from the cache) in {sim['wall_s']:.1f} s",
+        "execution success R[i][j] (row: after task i, column: task j):",
+    ]
+    width = max([4] + [len(str(n)) for n in names])
+    lines.append(" " * (width + 2) + " ".join(f"{str(n)[:5]:>5}" for n in names[: len(
+        fields["sim_accuracy"])]))
+    for i, row in enumerate(fields["sim_accuracy"]):
+        lines.append(f"{str(names[i]) if i < len(names) else i:>{width}}  "
+                     + " ".join(f"{_fmt(v):>5}" for v in row))
+    traj = results.get("cl_metrics") or {}
+    simm = fields["sim_cl_metrics"]
+    primary = results.get("cl_metrics_primary", "trajectory")
+    lines.append(f"{'':>10} {'execution':>10} {primary + ' (traj.)':>16}")
+    for key in ("ACC", "REM", "BWT"):
+        lines.append(f"{key:>10} {_fmt(simm.get(key)):>10} {_fmt(traj.get(key)):>16}")
+    return "\n".join(lines)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from clfd_bench.evaluation.sim_eval import evaluate_run, read_results
+
+    try:
+        fields = evaluate_run(args.run_dir, rerun_path=args.rerun, force=args.force,
+                              workers=args.workers)
+    except (FileNotFoundError, ValueError, KeyError) as exc:
+        print(f"clfd-bench evaluate: error: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps({k: fields[k] for k in ("success", "sim_accuracy", "sim_cl_metrics")}))
+    else:
+        print(format_summary(read_results(args.run_dir), fields))
+        if args.rerun:
+            print(f"rerun log: {args.rerun} (open with `rerun {args.rerun}`)")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``evaluate`` subcommand."""
+    p = subparsers.add_parser(
+        "evaluate",
+        help="execute a saved run's predictions in simulation (no training) and score them",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run directory of `clfd-bench train`")
+    p.add_argument("--rerun", metavar="FILE.rrd", default=None,
+                   help="also log every rollout (paths, prediction, demonstration, objects, "
+                        "outcomes) to this rerun file")
+    p.add_argument("--force", action="store_true",
+                   help="ignore the execution cache and execute every prediction again")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="processes executing rollouts in parallel (default 1; --rerun runs in "
+                        "this process)")
+    p.add_argument("--json", action="store_true",
+                   help="print success, sim_accuracy and sim_cl_metrics as JSON")
+    p.set_defaults(func=_run)
