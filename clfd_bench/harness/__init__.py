@@ -1,0 +1,45 @@
+"""The harness: configs, the one training loop, the sequential protocol, results, checkpoints.
+
+* :mod:`~clfd_bench.harness.config` -- :class:`RunConfig` from ``baselines/<method>.toml``.
+* :mod:`~clfd_bench.harness.loop` -- :func:`train_task`, the only training loop.
+* :mod:`~clfd_bench.harness.learner` -- data <-> NODE space (normalisation, tangent map).
+* :mod:`~clfd_bench.harness.protocol` -- :func:`run_training` (``clfd-bench train``).
+* :mod:`~clfd_bench.harness.predict` -- :func:`predict` from a run directory.
+
+Names are imported lazily so that importing one module does not pull in the others.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__all__ = [
+    "ConfigError",
+    "Learner",
+    "RunConfig",
+    "RunMismatchError",
+    "load_learner",
+    "predict",
+    "resolve_config",
+    "run_training",
+    "train_task",
+]
+
+_WHERE = {
+    "ConfigError": "config",
+    "RunConfig": "config",
+    "resolve_config": "config",
+    "train_task": "loop",
+    "Learner": "learner",
+    "RunMismatchError": "protocol",
+    "load_learner": "protocol",
+    "run_training": "protocol",
+    "predict": "predict",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"clfd_bench.harness.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'clfd_bench.harness' has no attribute {name!r}")

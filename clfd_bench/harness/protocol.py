@@ -1,0 +1,389 @@
+"""The sequential protocol: learn the tasks in order; after each, predict every seen task.
+
+:func:`run_training` is what ``clfd-bench train`` runs. For task ``i`` of the dataset order:
+
+1. seed the RNGs from ``(seed, i)`` (so a resumed run draws the same numbers), add task ``i``
+   to every part's model and train it with the one training loop;
+2. predict tasks ``0..i`` from each demo's start (in data units) and score them;
+3. write ``predictions/after_task_{i}.npz``, then ``checkpoint.pt`` (model + progress), then
+   ``results.json`` -- each atomically.
+
+A run directory that already holds a checkpoint of the same configuration resumes after its
+last finished task and ends with the same results as an uninterrupted run; one with a
+different configuration is refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import os
+import platform
+import sys
+from collections.abc import Callable
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from clfd_bench.data import load_dataset
+from clfd_bench.data.types import Dataset
+from clfd_bench.harness.checkpoint import load_checkpoint, save_checkpoint
+from clfd_bench.harness.config import RunConfig
+from clfd_bench.harness.evaluation import (
+    metric_units,
+    metrics_for,
+    summarize,
+    task_errors,
+    thresholds_for,
+)
+from clfd_bench.harness.learner import Learner
+from clfd_bench.harness.loop import warm_up
+from clfd_bench.io import atomic_write_bytes, atomic_write_json
+
+__all__ = [
+    "CHECKPOINT_FILE",
+    "RESULTS_FILE",
+    "SCHEMA_VERSION",
+    "RunMismatchError",
+    "available_cores",
+    "default_threads",
+    "load_learner",
+    "predictions_path",
+    "run_training",
+    "task_seed",
+]
+
+SCHEMA_VERSION = 1
+RESULTS_FILE = "results.json"
+CHECKPOINT_FILE = "checkpoint.pt"
+
+
+class RunMismatchError(RuntimeError):
+    """The output directory holds a run with a different configuration."""
+
+
+def available_cores() -> int:
+    """CPU cores this process may use (``os.sched_getaffinity``), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def default_threads() -> int:
+    """Torch threads for training: 1, unless ``CLFD_THREADS`` says otherwise.
+
+    The NODEs here are small (batches of 8 states), so an iteration is thousands of tiny
+    operations and intra-op threads only add synchronisation. Measured on a 2-core machine
+    shared with other work: RK4 training of a 3 x 100 NODE took 16 ms per iteration with 1
+    thread and 69 ms with 2; the HN fast profile ran at 34 it/s with 1 thread and 0.4 it/s
+    with 2 (every parallel region waits for the busy core). Use the cores by running several
+    runs (methods, seeds) side by side instead; ``--threads`` overrides this.
+    """
+    value = os.environ.get("CLFD_THREADS", "")
+    return max(1, int(value)) if value.strip() else 1
+
+
+def task_seed(seed: int, task: int) -> int:
+    """The RNG seed used while learning ``task`` of a run seeded with ``seed``."""
+    return (int(seed) * 1_000_003 + int(task) * 7_919 + 17) % (2**63 - 1)
+
+
+def predictions_path(run_dir: str | os.PathLike[str], after_task: int) -> Path:
+    """``run_dir/predictions/after_task_{i}.npz``: arrays ``task_{j}`` ``[N, T, D]`` for j <= i."""
+    return Path(run_dir) / "predictions" / f"after_task_{after_task}.npz"
+
+
+def _versions() -> dict[str, str]:
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for pkg in ("clfd-bench", "torch", "torchdiffeq", "numpy", "scipy", "mink", "mujoco"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
+    return {
+        "packages": _versions(),
+        "dataset": {
+            "name": ds.name,
+            "order": ds.order,
+            "tasks": ds.task_names,
+            "source": ds.source,
+            "files": dict(ds.files),
+        },
+        "seed": config.seed,
+        "torch_threads": threads,
+    }
+
+
+def _config_without_tasks(d: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in d.items() if k not in ("tasks", "overrides")}
+
+
+def _diff(a: Any, b: Any, prefix: str = "") -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b)):
+            out += _diff(a.get(k), b.get(k), f"{prefix}{k}.")
+        return out
+    return [] if a == b else [f"{prefix.rstrip('.')}: {a!r} -> {b!r}"]
+
+
+def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[str]) -> dict:
+    return {
+        "tasks": task_names,
+        "train_time_s": [],
+        "train_time_s_by_part": {p: [] for p in parts},
+        "iterations_per_s_by_part": {p: [] for p in parts},
+        "final_loss_by_part": {p: [] for p in parts},
+        "num_params": [],
+        "num_params_by_part": {p: [] for p in parts},
+        "stored_samples": [],
+        "errors": {m: [] for m in metrics},
+    }
+
+
+def _results(config: RunConfig, ds: Dataset, state: dict, complete: bool,
+             provenance: dict) -> dict[str, Any]:
+    tasks = ds.tasks[: len(state["tasks"])]
+    first = tasks[0]
+    thresholds = thresholds_for(ds.name, first)
+    done = len(state["train_time_s"])
+    total = float(sum(t.num_demos * t.num_steps for t in tasks))
+    accuracy: dict[str, Any] = {}
+    cl: dict[str, Any] = {}
+    if done:
+        accuracy, cl = summarize(
+            state["errors"], thresholds, state["num_params_by_part"], state["stored_samples"],
+            total, state["train_time_s_by_part"],
+        )
+    primary = "dtw" if "dtw" in cl else next(iter(cl), None)
+    return _json_safe({
+        "schema_version": SCHEMA_VERSION,
+        "complete": complete,
+        "config": config.to_dict(),
+        "tasks": state["tasks"],
+        "tasks_done": done,
+        "units": metric_units(first),
+        "metrics": list(metrics_for(first.is_pose)),
+        "thresholds": thresholds,
+        "train_time_s": state["train_time_s"],
+        "train_time_s_by_part": state["train_time_s_by_part"],
+        "iterations_per_s_by_part": state["iterations_per_s_by_part"],
+        "final_loss_by_part": state["final_loss_by_part"],
+        "num_params": state["num_params"],
+        "num_params_by_part": state["num_params_by_part"],
+        "stored_samples": state["stored_samples"],
+        "total_samples": total,
+        "errors": state["errors"],
+        "accuracy": accuracy,
+        "cl_metrics": cl.get(primary, {}),
+        "cl_metrics_primary": primary,
+        "cl_metrics_by_metric": cl,
+        "predictions": [
+            str(predictions_path(".", i)).removeprefix("./") for i in range(done)
+        ],
+        "checkpoint": CHECKPOINT_FILE,
+        "provenance": provenance,
+    })
+
+
+def _json_safe(obj: Any) -> Any:
+    """NaN/inf floats -> None (JSON has no NaN; e.g. BWT is undefined after one task)."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_json_safe(v) for v in obj]
+    return obj
+
+
+def _write_results(out: Path, results: dict[str, Any]) -> dict[str, Any]:
+    """Write ``results.json``, keeping keys other tools added (e.g. simulation results)."""
+    path = out / RESULTS_FILE
+    merged = dict(results)
+    if path.is_file():
+        try:
+            existing = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            existing = {}
+        merged.update({k: v for k, v in existing.items() if k not in results})
+    atomic_write_json(path, merged)
+    return merged
+
+
+def _save_predictions(path: Path, preds: list[np.ndarray]) -> None:
+    buf = io.BytesIO()
+    np.savez(buf, **{f"task_{j}": p for j, p in enumerate(preds)})
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _checkpoint_payload(learner: Learner) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
+    headers, tensors = {}, {}
+    for kind, part in learner.parts.items():
+        headers[kind] = part.header()
+        for name, t in part.method.state_dict().items():
+            tensors[f"{kind}/{name}"] = t
+    return headers, tensors
+
+
+def load_learner(run_dir: str | os.PathLike[str]) -> tuple[Learner, dict[str, Any]]:
+    """Rebuild the trained model of a run from its checkpoint -> ``(learner, header)``."""
+    path = Path(run_dir) / CHECKPOINT_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist: {run_dir} is not a (started) run dir")
+    header, tensors = load_checkpoint(path)
+    config = RunConfig.from_dict(header["config"])
+    learner = Learner.from_config(config, header["dim"])
+    for kind, part in learner.parts.items():
+        prefix = f"{kind}/"
+        part.restore(header["parts"][kind],
+                     {k[len(prefix):]: v for k, v in tensors.items() if k.startswith(prefix)})
+    return learner, header
+
+
+def run_training(
+    config: RunConfig,
+    out_dir: str | os.PathLike[str],
+    *,
+    threads: int | None = None,
+    log: Callable[[str], None] | None = print,
+    after_task: Callable[[int], None] | None = None,
+    keep_checkpoints: bool = False,
+) -> dict[str, Any]:
+    """Run (or resume) the sequential protocol and return the results dict.
+
+    Args:
+        config: the resolved run configuration.
+        out_dir: the run directory (created if missing).
+        threads: torch CPU threads (default: :func:`default_threads`, i.e. 1).
+        log: where the one-line summaries go (None: silent).
+        after_task: called with the task index after each finished task (after all files
+            are written); an exception from it stops the run, which can then be resumed.
+        keep_checkpoints: also keep ``checkpoints/after_task_{i}.pt`` for every task.
+
+    Raises:
+        RunMismatchError: ``out_dir`` holds a run with a different configuration.
+    """
+    out = Path(out_dir)
+    threads = threads or default_threads()
+    torch.set_num_threads(threads)
+    ds = load_dataset(config.dataset, order=config.order)
+    n_tasks = len(ds) if config.tasks is None else min(config.tasks, len(ds))
+    config = dataclasses.replace(config, tasks=n_tasks)
+    tasks = ds.tasks[:n_tasks]
+    dim = tasks[0].dim
+    metrics = metrics_for(tasks[0].is_pose)
+
+    torch.manual_seed(config.seed)
+    learner = Learner.from_config(config, dim)
+    parts = list(learner.parts)
+    state = _empty_state([t.name for t in tasks], metrics, parts)
+    provenance = _provenance(config, ds, threads)
+    ckpt_path = out / CHECKPOINT_FILE
+    if ckpt_path.exists():
+        header, tensors = load_checkpoint(ckpt_path)
+        saved = header["config"]
+        diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
+        if diff:
+            raise RunMismatchError(
+                f"{out} holds a run with a different configuration ({'; '.join(diff)}); "
+                "use another --out directory or delete this one"
+            )
+        for kind, part in learner.parts.items():
+            prefix = f"{kind}/"
+            part.restore(header["parts"][kind],
+                         {k[len(prefix):]: v for k, v in tensors.items() if k.startswith(prefix)})
+        saved_state = header["state"]
+        done = len(saved_state["train_time_s"])
+        if done > n_tasks:
+            raise RunMismatchError(
+                f"{out} already holds {done} learned tasks, more than the {n_tasks} asked for; "
+                "use another --out directory"
+            )
+        saved_state["tasks"] = state["tasks"]
+        for metric in metrics:  # widen saved rows to the (possibly larger) task count
+            saved_state["errors"][metric] = [
+                (row + [None] * n_tasks)[:n_tasks] for row in saved_state["errors"][metric]
+            ]
+        state = saved_state
+        if log and done < n_tasks:
+            log(f"resuming {out} after task {done - 1} ({done}/{n_tasks} tasks done)")
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        done = 0
+
+    label = f"{config.method}/{config.dataset}"
+    if done < n_tasks:
+        warm_up()
+    for i in range(done, n_tasks):
+        task = tasks[i]
+        seed_i = task_seed(config.seed, i)
+        times_by_part = {}
+        for kind, part in learner.parts.items():
+            torch.manual_seed(seed_i)
+            generator = torch.Generator().manual_seed(seed_i + 1)
+            stats = part.learn(i, task, generator, desc=f"{label} {kind} task {i} {task.name}")
+            times_by_part[kind] = stats.seconds
+            state["train_time_s_by_part"][kind].append(stats.seconds)
+            state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
+            state["final_loss_by_part"][kind].append(stats.final_loss)
+            state["num_params_by_part"][kind].append(part.method.num_params())
+        state["train_time_s"].append(sum(times_by_part.values()))
+        state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
+        state["stored_samples"].append(
+            max(p.method.stored_samples() for p in learner.parts.values())
+        )
+        preds = []
+        for metric in metrics:
+            state["errors"][metric].append([None] * n_tasks)
+        for j in range(i + 1):
+            tj = tasks[j]
+            pred = learner.predict(j, tj.demos[:, 0], tj.times, learner.demo_goals(tj))
+            preds.append(pred)
+            for metric, values in task_errors(tj, pred).items():
+                state["errors"][metric][i][j] = values
+        _save_predictions(predictions_path(out, i), preds)
+        headers, tensors = _checkpoint_payload(learner)
+        header = _json_safe({"config": config.to_dict(), "dim": dim, "parts": headers,
+                             "state": state, "provenance": provenance})
+        save_checkpoint(ckpt_path, header, tensors)
+        if keep_checkpoints:
+            save_checkpoint(out / "checkpoints" / f"after_task_{i}.pt", header, tensors)
+        results = _results(config, ds, state, complete=i == n_tasks - 1, provenance=provenance)
+        _write_results(out, results)
+        if log:
+            log(_summary_line(config, task.name, i, n_tasks, state, results))
+        if after_task is not None:
+            after_task(i)
+    results = _results(config, ds, state, complete=True, provenance=provenance)
+    return _write_results(out, results)
+
+
+def _summary_line(config: RunConfig, name: str, i: int, n: int, state: dict,
+                  results: dict) -> str:
+    units = results["units"]["dtw"]
+    scale, shown = (100.0, "cm") if units == "m" else (1.0, units)
+    seen = [np.nanmean([np.nan if x is None else x for x in row])
+            for row in state["errors"]["dtw"][i][: i + 1]]
+    acc = results["accuracy"].get("dtw")
+    acc_txt = ""
+    if acc:
+        r = np.array([[np.nan if v is None else v for v in row] for row in acc])
+        acc_txt = f", ACC(dtw) so far {np.nanmean(r[np.tril_indices(i + 1)]):.2f}"
+    speeds = ", ".join(
+        f"{v[-1]:.0f} it/s" for v in state["iterations_per_s_by_part"].values()
+    )
+    return (
+        f"[{config.method} {config.dataset} seed {config.seed}] task {i + 1}/{n} {name!r}: "
+        f"trained in {state['train_time_s'][-1]:.1f}s ({speeds}); mean DTW of seen tasks "
+        f"{np.mean(seen) * scale:.1f} {shown}{acc_txt}"
+    )

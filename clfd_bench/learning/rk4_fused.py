@@ -1,0 +1,160 @@
+"""Classic RK4 through an MLP vector field with a hand-written backward pass.
+
+Mathematically this is ``integrate(field, y0, t, SolverSpec("rk4", substeps=s))`` and its
+gradient is exactly what autograd computes through those steps (discretise-then-optimise);
+tests compare the two. It exists for speed: the NODEs of this project are small (batches of
+8 states, widths of 100), so autograd's cost is dominated by per-operation overhead, not
+arithmetic. Here the forward pass builds no graph, the backward pass is one reverse sweep of
+plain tensor operations, and the weight gradients of all evaluations are summed in one
+matrix product per layer (:class:`~clfd_bench.learning.fused_mlp.MLPTape`). Times may be
+shared by the batch (``[K]``) or per sample (``[B, K]``, multiple shooting).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor
+
+from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, MLPTape
+
+__all__ = ["FUSED_ACTIVATIONS", "rk4_mlp"]
+
+
+def _forward(tape: MLPTape, y0: Tensor, times: Tensor, substeps: int):
+    """The RK4 sweep; returns ``([B, K, D] states, step sizes)``."""
+    per_sample = times.dim() == 2
+    n_out = times.shape[-1]
+    tk = times if per_sample else times.unsqueeze(0)  # [B or 1, K]
+    h = (tk[:, 1:] - tk[:, :-1]) / substeps  # [B|1, K-1]
+    s_idx = torch.arange(substeps, dtype=times.dtype)
+    base = tk[:, :-1].unsqueeze(-1) + h.unsqueeze(-1) * s_idx  # [B|1, K-1, s]
+    # stage times t, t + h/2, t + h of every step: [B|1, n_steps, 3]
+    stage_t = torch.stack([base, base + 0.5 * h.unsqueeze(-1), base + h.unsqueeze(-1)], -1)
+    n_steps = (n_out - 1) * substeps
+    stage_t = stage_t.reshape(tk.shape[0], n_steps, 3)
+    hs = h.repeat_interleave(substeps, dim=1)  # [B|1, n_steps]
+    if per_sample:
+        step_h = [hs[:, i : i + 1] for i in range(n_steps)]  # [B, 1] each
+        st = stage_t.permute(1, 2, 0).unsqueeze(-1)  # [n_steps, 3, B, 1]
+        stage_times = list(st.reshape(n_steps * 3, -1, 1).unbind(0))
+    else:
+        step_h = hs[0].tolist()  # Python floats
+        stage_times = stage_t[0].reshape(-1).tolist()
+    if tape.w0t is None:
+        rows = None
+    else:  # first-layer bias of every stage in one operation, as a list of views
+        rows = (tape.b0 + stage_t.permute(1, 2, 0).unsqueeze(-1) * tape.w0t)
+        rows = rows.reshape(n_steps * 3, *rows.shape[2:]).unbind(0)
+
+    def f(u: Tensor, r: int) -> Tensor:
+        return tape(stage_times[r], u, None if rows is None else rows[r])
+
+    y = y0
+    out = [y0]
+    step = 0
+    for _ in range(n_out - 1):
+        for _ in range(substeps):
+            hh = step_h[step]
+            r = 3 * step
+            if per_sample:
+                k1 = f(y, r)
+                k2 = f(torch.addcmul(y, hh, k1, value=0.5), r + 1)
+                k3 = f(torch.addcmul(y, hh, k2, value=0.5), r + 1)
+                k4 = f(torch.addcmul(y, hh, k3), r + 2)
+                y = torch.addcmul(y, hh, torch.add(k1 + k4, k2 + k3, alpha=2.0), value=1 / 6)
+            else:
+                half = 0.5 * hh
+                k1 = f(y, r)
+                k2 = f(torch.add(y, k1, alpha=half), r + 1)
+                k3 = f(torch.add(y, k2, alpha=half), r + 1)
+                k4 = f(torch.add(y, k3, alpha=hh), r + 2)
+                y = torch.add(y, torch.add(k1 + k4, k2 + k3, alpha=2.0), alpha=hh / 6)
+            step += 1
+        out.append(y)
+    return torch.stack(out, dim=1), step_h
+
+
+class _RK4MLP(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, y0, times, substeps, act, w0y, w0t, b0, *rest):
+        tape = MLPTape(w0y, w0t, b0, rest, act, record=True)
+        with torch.no_grad():
+            result, step_h = _forward(tape, y0, times, substeps)
+        ctx.tape, ctx.step_h, ctx.substeps = tape, step_h, substeps
+        return result
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        # Reverse sweep of y' = y + h/6 (k1 + 2 k2 + 2 k3 + k4) with k1 = f(y),
+        # k2 = f(y + h/2 k1), k3 = f(y + h/2 k2), k4 = f(y + h k3); evaluation 4 s + i is
+        # stage i + 1 of step s.
+        tape, step_h = ctx.tape, ctx.step_h
+        tape.start_reverse()
+
+        def scaled(c: float, hh, g: Tensor) -> Tensor:
+            return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
+
+        def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
+            if isinstance(hh, float):
+                return torch.add(y, g, alpha=c * hh)
+            return torch.addcmul(y, hh, g, value=c)
+
+        ybar = grad_out[:, -1]
+        step = len(step_h)
+        for k in range(grad_out.shape[1] - 2, -1, -1):
+            for _ in range(ctx.substeps):
+                step -= 1
+                hh = step_h[step]
+                e0 = 4 * step
+                k1b = scaled(1.0 / 6.0, hh, ybar)
+                k2b = scaled(1.0 / 3.0, hh, ybar)
+                u4 = tape.vjp(k1b, e0 + 3)
+                u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
+                u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
+                u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
+                ybar = ybar + (u4 + u3) + (u2 + u1)
+            ybar = ybar + grad_out[:, k]
+        grad_w0y, grad_w0t, grad_b0, grads_rest = tape.weight_grads()
+        return (ybar, None, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
+
+
+def rk4_mlp(
+    y0: Tensor,
+    times: Tensor,
+    w0y: Tensor,
+    w0t: Tensor | None,
+    b0: Tensor,
+    rest: Sequence[Tensor],
+    act: str = "elu",
+    substeps: int = 1,
+) -> Tensor:
+    """RK4-integrate ``f(t, y) = MLP`` from ``y0`` over ``times`` (see the module docstring).
+
+    Args:
+        y0: ``[B, D]`` initial states.
+        times: ``[K]`` shared or ``[B, K]`` per-sample output times (increasing).
+        w0y: ``[H, D]`` first-layer weights on the state.
+        w0t: ``[H]`` first-layer weights on the time (NODE^T) or None (NODE^I).
+        b0: ``[H]`` first-layer bias.
+        rest: ``[W1, b1, ..., WL, bL]`` the remaining layers.
+        act: hidden activation, one of :data:`FUSED_ACTIVATIONS`.
+        substeps: RK4 steps per output interval.
+
+    Returns:
+        ``[B, K, D]`` states at the output times; differentiable w.r.t. ``y0`` and all weights.
+    """
+    if act not in FUSED_ACTIVATIONS:
+        raise ValueError(f"fused RK4 supports activations {FUSED_ACTIVATIONS}, not {act!r}")
+    if times.shape[-1] < 2:
+        return y0.unsqueeze(1)
+    if times.dim() == 2 and times.shape[0] != y0.shape[0]:
+        raise ValueError(f"per-sample times [B, K] need B = {y0.shape[0]}, got {times.shape}")
+    times = times.to(y0.dtype)
+    tensors = [y0, w0y, b0, *rest] + ([] if w0t is None else [w0t])
+    if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
+        with torch.no_grad():
+            tape = MLPTape(w0y, w0t, b0, rest, act, record=False)
+            return _forward(tape, y0, times, int(substeps))[0]
+    return _RK4MLP.apply(y0, times, int(substeps), act, w0y, w0t, b0, *rest)

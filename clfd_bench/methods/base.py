@@ -1,0 +1,135 @@
+"""The interface every continual-learning method implements.
+
+A method is a strategy on the ONE training loop (:func:`clfd_bench.harness.loop.train_task`):
+it owns the model (NODE weights, task embeddings, hypernetwork) and supplies
+
+* :meth:`Method.on_task_start` / :meth:`Method.on_task_end` hooks (create a task's network
+  or embedding, compute regulariser targets or importances, store replay data),
+* :meth:`Method.trainable` -- what the optimiser updates while learning a task,
+* :meth:`Method.field` -- the NODE vector field of a task (for training and prediction),
+* :meth:`Method.extra_loss` -- a regulariser added after the task loss is back-propagated,
+* :meth:`Method.after_step` and :meth:`Method.pick_task` for methods that need them (SI, REP).
+
+Everything a method must remember between tasks is a parameter or buffer of the module, so
+``state_dict()`` is a complete checkpoint; :meth:`Method.prepare_tasks` rebuilds the
+structure (how many tasks) before ``load_state_dict``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+from torch import Tensor, nn
+
+from clfd_bench.harness.config import PartConfig
+from clfd_bench.learning.batches import BatchSampler, BatchSpec
+from clfd_bench.learning.node import NodeSpec, VectorField
+
+__all__ = ["Method", "StepContext", "TaskData"]
+
+
+@dataclass
+class TaskData:
+    """One task's training data, as the loop and the methods see it.
+
+    Attributes:
+        demos: ``[N, T, D]`` normalised demonstrations (float32 tensor).
+        times: ``[T]`` time stamps in seconds.
+    """
+
+    demos: Tensor
+    times: Tensor
+
+    def sampler(self, spec: BatchSpec, iterations: int) -> BatchSampler:
+        """A batch sampler over these demos."""
+        return BatchSampler(self.demos, self.times, spec, iterations)
+
+    @property
+    def num_samples(self) -> int:
+        """``N * T``: how many samples storing this task means."""
+        return int(self.demos.shape[0] * self.demos.shape[1])
+
+
+@dataclass
+class StepContext:
+    """What :meth:`Method.extra_loss` may use in one iteration."""
+
+    task: int
+    iteration: int
+    optimizer: torch.optim.Optimizer
+    generator: torch.Generator
+
+
+class Method(nn.Module):
+    """Base class of the CL methods (see the module docstring).
+
+    Args:
+        node: the target NODE architecture (``cond_dim`` is set by the method).
+        cfg: the part's hyperparameters.
+    """
+
+    name: ClassVar[str] = ""
+    """Registered name (``sg``, ``ft``, ...)."""
+
+    hyperparameters: ClassVar[frozenset[str]] = frozenset()
+    """Method-specific :class:`PartConfig` keys this method reads."""
+
+    def __init__(self, node: NodeSpec, cfg: PartConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.node_spec = node
+        self.num_tasks = 0
+
+    # -- structure ------------------------------------------------------------------
+    def add_task(self) -> None:
+        """Create what a new task needs (a network, an embedding). Called once per task,
+        before :meth:`on_task_start`, with the global torch RNG seeded for the task."""
+        self.num_tasks += 1
+
+    def prepare_tasks(self, num_tasks: int, state: Mapping[str, Tensor]) -> None:
+        """Rebuild the structure for ``num_tasks`` learned tasks before ``load_state_dict``."""
+        while self.num_tasks < num_tasks:
+            self.add_task()
+
+    # -- model ----------------------------------------------------------------------
+    def field(self, task: int) -> VectorField:
+        """The vector field that reproduces ``task``."""
+        raise NotImplementedError
+
+    def trainable(self, task: int) -> list[nn.Parameter]:
+        """Parameters the optimiser updates while learning ``task``."""
+        raise NotImplementedError
+
+    # -- hooks ----------------------------------------------------------------------
+    def on_task_start(self, task: int, data: TaskData) -> None:
+        """Before the first iteration on ``task``."""
+
+    def on_task_end(self, task: int, data: TaskData) -> None:
+        """After the last iteration on ``task`` (counted in its training time)."""
+
+    def pick_task(self, task: int, generator: torch.Generator) -> int:
+        """Which task's data the next iteration trains on (REP: any seen task)."""
+        return task
+
+    def replay_data(self, task: int) -> TaskData:
+        """Stored data of an earlier task (only methods that store data)."""
+        raise NotImplementedError(f"method {self.name!r} stores no data")
+
+    def extra_loss(self, ctx: StepContext) -> Tensor | None:
+        """A regulariser, back-propagated after the task loss and before the step."""
+        return None
+
+    def after_step(self) -> None:
+        """After each optimiser step (SI's running importance)."""
+
+    # -- accounting -----------------------------------------------------------------
+    def num_params(self) -> int:
+        """Parameters the model must keep to reproduce every learned task (MS, FS)."""
+        return sum(p.numel() for p in self.parameters())
+
+    def stored_samples(self) -> int:
+        """Demonstration samples kept from learned tasks (SSS)."""
+        return 0
