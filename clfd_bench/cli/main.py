@@ -11,10 +11,10 @@ from clfd_bench import __version__
 
 __all__ = ["build_parser", "main"]
 
-COMMANDS: tuple[str, ...] = ("data",)
+COMMANDS: tuple[str, ...] = ("data", "train", "evaluate", "leaderboard", "replay", "video")
 """Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
 
-BENCH_COMMANDS: tuple[str, ...] = ()
+BENCH_COMMANDS: tuple[str, ...] = ("bench_train", "bench_sim")
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench bench <name>`` subcommand."""
 
 

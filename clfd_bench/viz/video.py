@@ -36,6 +36,7 @@ __all__ = [
     "VideoWriter",
     "frame_camera",
     "render_rollout",
+    "render_text_video",
     "render_run_videos",
     "text_for_letters",
 ]
@@ -528,6 +529,28 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
         if logger is not None:
             logger.close()
     return written
+
+
+def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
+                      out_dir: str | os.PathLike[str] = "videos", *,
+                      style: VideoStyle | None = None) -> Path | None:
+    """Renders only the HelloWorld text ("hello world", or the letters learned so far) written
+    with ``clfd/HelloWorld-v0`` from a HelloWorld run's predictions after its last task.
+
+    Returns:
+        The mp4's path, or None when the run learned none of the text's letters.
+    """
+    from clfd_bench.evaluation.sim_eval import load_run, load_run_predictions
+
+    run = load_run(run_dir)
+    if run.dataset != "helloworld":
+        raise ValueError(f"{run.path} is a {run.dataset} run; the text video needs helloworld")
+    if run.num_learned == 0:
+        raise ValueError(f"{run.path} has no learned task yet; nothing to render")
+    preds = load_run_predictions(run.path, run.num_learned - 1)
+    demos = dict(enumerate(run.demos()))
+    return _render_text(_safe(run.path.resolve().name), Path(out_dir), run.learned, preds,
+                        demos, demo, style or VideoStyle(), None)
 
 
 def _render_text(run: str, out_dir: Path, names: Sequence[str], preds: dict[int, np.ndarray],

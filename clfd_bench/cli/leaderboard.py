@@ -1,0 +1,93 @@
+"""``clfd-bench leaderboard``: run a grid of CL methods and write the leaderboard."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+__all__ = ["register"]
+
+ALL_METHODS = "sg,ft,rep,si,mas,hn,chn"
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        msg = f"expected comma-separated integers, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
+
+
+def _names(text: str) -> list[str]:
+    return [x.strip().lower() for x in text.split(",") if x.strip()]
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from clfd_bench.data import DATASETS
+    from clfd_bench.leaderboard.runner import run_leaderboard
+    from clfd_bench.methods import get_method_class
+
+    if args.dataset not in DATASETS:
+        print(f"unknown dataset {args.dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+        return 2
+    try:
+        for method in args.methods:
+            get_method_class(method)
+    except KeyError as exc:
+        print(exc.args[0], file=sys.stderr)
+        return 2
+    result = run_leaderboard(
+        dataset=args.dataset,
+        methods=args.methods,
+        profile=args.profile,
+        seeds=args.seeds,
+        orders=args.orders,
+        out=Path(args.out),
+        node=args.node,
+        tasks=args.tasks,
+        sim=not args.no_sim,
+        executor=args.executor,
+        workers=args.workers,
+        address=args.address,
+    )
+    print(
+        f"[leaderboard] {len(result.specs)} runs: {len(result.trained)} trained now, "
+        f"{len(result.skipped)} already done, {len(result.failed)} failed "
+        f"({result.seconds:.0f} s)"
+    )
+    print((Path(args.out) / "leaderboard.md").read_text())
+    for path in result.files:
+        print(f"[leaderboard] wrote {path}")
+    return 1 if result.failed else 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``leaderboard`` subcommand."""
+    p = subparsers.add_parser(
+        "leaderboard",
+        help="train a grid of CL methods (skipping finished runs) and write the leaderboard",
+        description="Runs the training runs of the grid that are not finished yet (a killed "
+        "grid resumes; a crashed run is reported as failed and does not stop the grid), then "
+        "writes leaderboard.md/.csv/.json and PNG figures into --out.",
+    )
+    p.add_argument("--dataset", required=True, help="lasa, helloworld, robotasks, robotasks9")
+    p.add_argument("--methods", type=_names, default=_names(ALL_METHODS),
+                   help=f"comma-separated CL methods (default {ALL_METHODS})")
+    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
+    p.add_argument("--orders", type=_ints, default=[0], help="task orders (default 0)")
+    p.add_argument("--node", choices=("t", "i"), default="t",
+                   help="NODE with time input (t) or without (i)")
+    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
+    p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
+    p.add_argument("--out", default="results", help="output directory (default results/)")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local processes (default) or a Ray cluster")
+    p.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1)),
+                   help="parallel local processes (default: CPU count)")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster address (default: start a local Ray instance)")
+    p.set_defaults(func=_run)

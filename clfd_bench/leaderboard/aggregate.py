@@ -1,0 +1,117 @@
+"""Aggregate finished runs into leaderboard rows: median and IQR over seeds and orders.
+
+Input: the ``results.json`` of each run (schema of :mod:`clfd_bench.harness`). FS needs the
+final model sizes of every compared method, so it is computed here, across the grid, and
+CL_score / CL_stability are recomputed with it.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
+
+__all__ = ["MethodRow", "RunRecord", "aggregate", "quartiles", "error_metric_for"]
+
+CRITERIA = ("ACC", "REM", "MS", "TE", "FS", "SSS")
+EXEC_KEYS = ("ACC", "REM", "BWT")
+
+
+@dataclass
+class RunRecord:
+    """A run of the grid and what it left: results (None if none), status, error."""
+
+    spec: RunSpec
+    status: str
+    results: dict[str, Any] | None = None
+    error: str | None = None
+
+
+@dataclass
+class MethodRow:
+    """One leaderboard row: a method's metrics over its runs (value lists per key)."""
+
+    method: str
+    runs_ok: int = 0
+    runs_failed: int = 0
+    errors: list[str] = field(default_factory=list)
+    values: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+
+    def median(self, key: str) -> float:
+        vals = self.values.get(key, [])
+        return float(np.median(vals)) if vals else float("nan")
+
+    def iqr(self, key: str) -> tuple[float, float]:
+        vals = self.values.get(key, [])
+        if not vals:
+            return float("nan"), float("nan")
+        q1, q3 = np.percentile(vals, [25, 75])
+        return float(q1), float(q3)
+
+
+def quartiles(values: list[float] | np.ndarray) -> tuple[float, float, float]:
+    """(q1, median, q3) of the finite values; NaNs if there are none."""
+    arr = np.asarray(values, dtype=float)
+    arr = arr[np.isfinite(arr)]
+    if arr.size == 0:
+        return float("nan"), float("nan"), float("nan")
+    q1, med, q3 = np.percentile(arr, [25, 50, 75])
+    return float(q1), float(med), float(q3)
+
+
+def error_metric_for(results: dict[str, Any]) -> str:
+    """The headline trajectory error of a run: DTW (position)."""
+    return "dtw" if "dtw" in results.get("errors", {}) else next(iter(results["errors"]))
+
+
+def _final_size(results: dict[str, Any]) -> float:
+    sizes = results.get("num_params") or []
+    return float(sizes[-1]) if sizes else float("nan")
+
+
+def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
+    """One :class:`MethodRow` per method, in ``methods`` order.
+
+    Keys in ``values``: the trajectory CL criteria and CL_score / CL_stability (with FS
+    across the compared methods), ``BWT``, ``exec_ACC`` / ``exec_REM`` / ``exec_BWT`` (from
+    simulation, when the run executed), ``train_time_s`` (total), ``final_params``.
+    """
+    rows = {m: MethodRow(m) for m in methods}
+    finished = [r for r in records if r.results is not None and r.status == "done"]
+    # FS: the final model size of each method (median over its runs) against all methods.
+    sizes: dict[str, float] = {}
+    for method in methods:
+        vals = [_final_size(r.results) for r in finished if r.spec.method == method]
+        if vals:
+            sizes[method] = float(np.median(vals))
+    for record in records:
+        row = rows[record.spec.method]
+        if record.status != "done" or record.results is None:
+            if record.status == "failed":
+                row.runs_failed += 1
+                row.errors.append(f"{record.spec.name}: {record.error}")
+            continue
+        row.runs_ok += 1
+        res = record.results
+        cl = dict(res.get("cl_metrics", {}))
+        if len(sizes) == len(methods) and sizes:
+            cl["FS"] = final_model_size(sizes, record.spec.method)
+        for key in (*CRITERIA, "BWT"):
+            if cl.get(key) is not None:
+                row.values[key].append(float(cl[key]))
+        criteria = {k: cl[k] for k in CRITERIA if cl.get(k) is not None}
+        if len(criteria) == len(CRITERIA):
+            row.values["CL_score"].append(cl_score(criteria))
+            row.values["CL_stability"].append(cl_stability(criteria))
+        for key in EXEC_KEYS:
+            value = (res.get("sim_cl_metrics") or {}).get(key)
+            if value is not None:
+                row.values[f"exec_{key}"].append(float(value))
+        row.values["train_time_s"].append(float(sum(res.get("train_time_s", []))))
+        row.values["final_params"].append(_final_size(res))
+    return [rows[m] for m in methods]

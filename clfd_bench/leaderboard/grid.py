@@ -1,0 +1,126 @@
+"""The grid of training runs a leaderboard needs, and which of them are already done.
+
+A run is identified by :class:`RunSpec`; its directory under the leaderboard's output is
+derived from the spec alone, so starting a leaderboard again finds finished runs and skips
+them, and a half-finished run resumes from its last finished task (the training command
+resumes by itself).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict, dataclass
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+__all__ = ["RunSpec", "make_grid", "read_results", "run_status"]
+
+FAILED_FILE = "failed.json"
+RESULTS_FILE = "results.json"
+
+
+@dataclass(frozen=True, order=True)
+class RunSpec:
+    """One training run of the grid.
+
+    Attributes:
+        dataset: registered dataset name.
+        method: registered CL method name.
+        profile: hyperparameter profile (``paper``, ``fast``, ``smoke``).
+        seed: random seed.
+        order: task order (0, 1, 2).
+        node: ``"t"`` (NODE with time input) or ``"i"`` (without).
+        tasks: stop after this many tasks (None: all).
+        sim: execute predictions in simulation during evaluation.
+    """
+
+    dataset: str
+    method: str
+    profile: str
+    seed: int
+    order: int = 0
+    node: str = "t"
+    tasks: int | None = None
+    sim: bool = True
+
+    @property
+    def name(self) -> str:
+        """A short unique name, also the run's directory below ``<out>/runs/``."""
+        tasks = f"_k{self.tasks}" if self.tasks is not None else ""
+        sim = "" if self.sim else "_nosim"
+        return (
+            f"{self.dataset}/{self.method}/{self.profile}_node{self.node}"
+            f"_o{self.order}_s{self.seed}{tasks}{sim}"
+        )
+
+    def run_dir(self, root: Path) -> Path:
+        """The run's directory below ``root/runs``."""
+        return Path(root) / "runs" / self.name
+
+    def train_argv(self, root: Path) -> list[str]:
+        """The ``clfd-bench train`` command line that performs (or resumes) this run."""
+        argv = [
+            sys.executable, "-m", "clfd_bench.cli.main", "train",
+            "--method", self.method, "--dataset", self.dataset, "--profile", self.profile,
+            "--seed", str(self.seed), "--order", str(self.order), "--node", self.node,
+            "--out", str(self.run_dir(root)),
+        ]  # fmt: skip
+        if self.tasks is not None:
+            argv += ["--tasks", str(self.tasks)]
+        if not self.sim:
+            argv.append("--no-sim")
+        return argv
+
+    def num_tasks(self) -> int:
+        """How many tasks the run learns: ``tasks`` or all of the dataset's."""
+        from clfd_bench.data import DATASETS
+
+        total = len(DATASETS[self.dataset].task_names()[self.order])
+        return total if self.tasks is None else min(self.tasks, total)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def make_grid(
+    dataset: str,
+    methods: list[str],
+    profile: str,
+    seeds: list[int],
+    orders: list[int],
+    node: str = "t",
+    tasks: int | None = None,
+    sim: bool = True,
+) -> list[RunSpec]:
+    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order."""
+    if not methods or not seeds or not orders:
+        raise ValueError("a grid needs at least one method, one seed and one order")
+    return [
+        RunSpec(dataset, m, profile, s, o, node, tasks, sim)
+        for m, o, s in product(methods, orders, seeds)
+    ]
+
+
+def read_results(run_dir: Path) -> dict[str, Any] | None:
+    """The run's ``results.json`` or None if there is none (or it is unreadable)."""
+    path = Path(run_dir) / RESULTS_FILE
+    try:
+        return json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return None
+
+
+def run_status(spec: RunSpec, root: Path) -> str:
+    """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``."""
+    run_dir = spec.run_dir(root)
+    results = read_results(run_dir)
+    if results is not None and results.get("complete"):
+        learned = len(results.get("train_time_s", []))
+        # With simulation a run is done once its predictions were executed too.
+        if learned >= spec.num_tasks() and (not spec.sim or results.get("success") is not None):
+            return "done"
+    if (run_dir / FAILED_FILE).is_file():
+        return "failed"
+    return "partial" if run_dir.exists() else "missing"

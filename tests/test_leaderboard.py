@@ -1,0 +1,108 @@
+"""The leaderboard grid: local and Ray executors agree, resuming trains nothing twice,
+a crashing run is reported and does not stop the grid, tables and figures are written."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import pytest
+
+from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.runner import run_leaderboard
+
+GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[0], orders=[0],
+            tasks=2, sim=True)
+
+# Wall-clock columns differ between any two runs; everything else must be identical.
+CLOCK_KEYS = {"TE", "CL_score", "CL_stability", "train_time_s"}
+
+
+def _table(out):
+    rows = json.loads((out / "leaderboard.json").read_text())["rows"]
+    return {
+        row["method"]: {k: v["values"] for k, v in row["metrics"].items() if k not in CLOCK_KEYS}
+        for row in rows
+    }
+
+
+def _run_errors(out, spec: RunSpec):
+    results = json.loads((spec.run_dir(out) / "results.json").read_text())
+    return results["errors"], results.get("success")
+
+
+@pytest.fixture(scope="module")
+def local_grid(tmp_path_factory):
+    out = tmp_path_factory.mktemp("local")
+    result = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    return out, result
+
+
+def test_local_grid_writes_tables_and_figures(local_grid):
+    out, result = local_grid
+    assert len(result.trained) == 2 and not result.failed
+    for name in ("leaderboard.md", "leaderboard.csv", "leaderboard.json", "error_vs_task.png",
+                 "error_boxes.png", "cl_radar.png", "success_vs_task.png"):
+        assert (out / name).is_file(), name
+    md = (out / "leaderboard.md").read_text()
+    assert md.count("| SG |") == 1 and md.count("| HN |") == 1
+    table = _table(out)
+    assert set(table) == {"sg", "hn"}
+    assert table["sg"]["ACC"] and table["hn"]["exec_ACC"]
+
+
+def test_rerun_trains_nothing_twice(local_grid):
+    out, _ = local_grid
+    spec = RunSpec("helloworld", "sg", "smoke", 0, 0, "t", 2, True)
+    before = spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns
+    again = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    assert again.trained == [] and len(again.skipped) == 2
+    assert spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns == before
+
+
+def test_half_finished_grid_resumes_without_retraining(tmp_path):
+    """A grid killed after one task of one run: the next call finishes that run from its
+    checkpoint (task 0 is not trained again) and trains the missing run."""
+    from clfd_bench.cli.main import main
+
+    hn = RunSpec("helloworld", "hn", "smoke", 0, 0, "t", 2, True)
+    assert main(["train", "--method", "hn", "--dataset", "helloworld", "--profile", "smoke",
+                 "--tasks", "1", "--quiet", "--out", str(hn.run_dir(tmp_path))]) == 0
+    first = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
+    assert len(first["train_time_s"]) == 1
+    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    assert sorted(s.method for s in result.trained) == ["hn", "sg"] and not result.failed
+    final = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
+    assert final["complete"] and len(final["train_time_s"]) == 2
+    assert final["train_time_s"][0] == first["train_time_s"][0]  # task 0 not retrained
+    assert final["errors"]["dtw"][0][0] == first["errors"]["dtw"][0][0]
+    log = (hn.run_dir(tmp_path) / "train.log").read_text()
+    assert "resuming" in log
+
+
+def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
+    original = RunSpec.train_argv
+
+    def argv(self, root):
+        if self.method == "hn":
+            return [sys.executable, "-c", "raise SystemExit('boom: injected failure')"]
+        return original(self, root)
+
+    monkeypatch.setattr(RunSpec, "train_argv", argv)
+    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    assert [o.spec.method for o in result.failed] == ["hn"]
+    assert "boom: injected failure" in result.failed[0].error
+    md = (tmp_path / "leaderboard.md").read_text()
+    assert "failed" in md and "boom: injected failure" in md
+    table = _table(tmp_path)
+    assert table["sg"]["ACC"]  # the other run finished and is in the table
+
+
+def test_ray_executor_gives_identical_tables(local_grid, tmp_path):
+    pytest.importorskip("ray", reason="Ray is the optional extra clfd-bench[dist]")
+    out, _ = local_grid
+    result = run_leaderboard(**GRID, out=tmp_path, executor="ray")
+    assert len(result.trained) == 2 and not result.failed
+    assert _table(tmp_path) == _table(out)
+    for spec in result.specs:
+        assert _run_errors(tmp_path, spec) == _run_errors(out, spec)
