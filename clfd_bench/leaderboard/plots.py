@@ -62,6 +62,16 @@ def _threshold_line(ax, records: list[RunRecord], metric: str | None) -> None:
         ax.axhline(thr, color="k", ls="--", lw=1, label=f"accuracy threshold ({thr:g})")
 
 
+def _median_band(ax, label: str, samples: dict[int, list[float]]) -> None:
+    """Plot the median of each x's samples as a line and their IQR as a band."""
+    xs = [x for x, vals in samples.items() if vals]
+    if not xs:
+        return
+    q1, q2, q3 = np.array([np.percentile(samples[x], [25, 50, 75]) for x in xs]).T
+    line = ax.plot(xs, q2, marker="o", ms=3, label=label)[0]
+    ax.fill_between(xs, q1, q3, color=line.get_color(), alpha=0.2)
+
+
 def _save(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp.png")
@@ -82,20 +92,11 @@ def plot_error_vs_task(records, methods, out: Path, title: str) -> Path | None:
         if not runs:
             continue
         metric = metric or error_metric_for(runs[0])
-        med, lo, hi, xs = [], [], [], []
-        for i in range(m_tasks):
-            errs = [
-                e for res in runs if i < len(res["tasks"]) for e in _errors_after(res, metric, i)
-            ]
-            if not errs:
-                continue
-            q1, q2, q3 = np.percentile(errs, [25, 50, 75])
-            xs.append(i)
-            med.append(q2)
-            lo.append(q1)
-            hi.append(q3)
-        line = ax.plot(xs, med, marker="o", ms=3, label=method.upper())[0]
-        ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2)
+        samples = {
+            i: [e for res in runs if i < len(res["tasks"]) for e in _errors_after(res, metric, i)]
+            for i in range(m_tasks)
+        }
+        _median_band(ax, method.upper(), samples)
     _threshold_line(ax, records, metric)
     ax.set_yscale("log")
     ax.xaxis.get_major_locator().set_params(integer=True)
@@ -160,23 +161,16 @@ def plot_success_vs_task(records, methods, out: Path, title: str) -> Path | None
         runs = [res for res in _done(records, method) if res.get("success")]
         if not runs:
             continue
-        xs, med, lo, hi = [], [], [], []
+        samples = {}
         for i in range(m_tasks):
-            rates = []
+            samples[i] = []
             for res in runs:
                 if i >= len(res["success"]):
                     continue
                 flags = [bool(s) for row in res["success"][i][: i + 1] for s in row]
                 if flags:
-                    rates.append(float(np.mean(flags)))
-            if rates:
-                q1, q2, q3 = np.percentile(rates, [25, 50, 75])
-                xs.append(i)
-                med.append(q2)
-                lo.append(q1)
-                hi.append(q3)
-        line = ax.plot(xs, med, marker="o", ms=3, label=method.upper())[0]
-        ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2)
+                    samples[i].append(float(np.mean(flags)))
+        _median_band(ax, method.upper(), samples)
         drawn = True
     if not drawn:
         plt.close(fig)
