@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from clfd_bench.io import atomic_write_json
+from clfd_bench.io import atomic_write_json, json_safe
 from clfd_bench.progress import progress
 
 __all__ = [
@@ -149,25 +149,6 @@ class ExecResult:
 def _finite_or_none(x: Any) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None
-
-
-def _json_safe(value: Any) -> Any:
-    """Numbers, lists, dicts and strings of ``value`` with NaN/inf as None, numpy unwrapped."""
-    if isinstance(value, Mapping):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return _finite_or_none(value)
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
 
 
 def _failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
@@ -415,7 +396,7 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
         failure_reason=_failure_reason(bool(res.success), res.info),
         steps=int(res.steps),
         wall_s=wall,
-        info=_json_safe(dict(res.info)),
+        info=json_safe(dict(res.info)),
         trace=tracer.trace() if trace else None,
         frames=res.frames,
     )

@@ -42,7 +42,7 @@ from clfd_bench.harness.evaluation import (
 )
 from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.loop import warm_up
-from clfd_bench.io import atomic_write_bytes, atomic_write_json
+from clfd_bench.io import atomic_write_bytes, atomic_write_json, json_safe
 
 __all__ = [
     "CHECKPOINT_FILE",
@@ -165,7 +165,7 @@ def _results(config: RunConfig, ds: Dataset, state: dict, complete: bool,
             total, state["train_time_s_by_part"],
         )
     primary = "dtw" if "dtw" in cl else next(iter(cl), None)
-    return _json_safe({
+    return json_safe({
         "schema_version": SCHEMA_VERSION,
         "complete": complete,
         "config": config.to_dict(),
@@ -194,16 +194,6 @@ def _results(config: RunConfig, ds: Dataset, state: dict, complete: bool,
         "provenance": provenance,
     })
 
-
-def _json_safe(obj: Any) -> Any:
-    """NaN/inf floats -> None (JSON has no NaN; e.g. BWT is undefined after one task)."""
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_json_safe(v) for v in obj]
-    return obj
 
 
 def _write_results(out: Path, results: dict[str, Any]) -> dict[str, Any]:
@@ -353,7 +343,7 @@ def run_training(
                 state["errors"][metric][i][j] = values
         _save_predictions(predictions_path(out, i), preds)
         headers, tensors = _checkpoint_payload(learner)
-        header = _json_safe({"config": config.to_dict(), "dim": dim, "parts": headers,
+        header = json_safe({"config": config.to_dict(), "dim": dim, "parts": headers,
                              "state": state, "provenance": provenance})
         save_checkpoint(ckpt_path, header, tensors)
         if keep_checkpoints:
