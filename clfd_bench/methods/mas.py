@@ -17,8 +17,9 @@ from torch import Tensor
 from torch.func import grad, vmap
 
 from clfd_bench.learning.node import VectorField
-from clfd_bench.methods.base import StepContext, TaskData
+from clfd_bench.methods.base import TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
+from clfd_bench.methods.importance import ImportancePenaltyMethod
 
 __all__ = ["MemoryAwareSynapses", "output_norm_importance"]
 
@@ -50,26 +51,15 @@ def output_norm_importance(
     return [acc / ys.shape[0] for acc in total]
 
 
-class MemoryAwareSynapses(ConditionedNodeMethod):
+class MemoryAwareSynapses(ImportancePenaltyMethod):
     """MAS (see the module docstring). Buffers: ``importance`` (Omega), ``anchor``."""
 
     name = "mas"
     hyperparameters = ConditionedNodeMethod.hyperparameters | {"mas_lambda", "mas_points"}
 
-    def __init__(self, node, cfg):
-        super().__init__(node, cfg)
-        for i, w in enumerate(self.weights):
-            self.register_buffer(f"importance_{i}", torch.zeros_like(w))
-            self.register_buffer(f"anchor_{i}", w.detach().clone())
-
-    def extra_loss(self, ctx: StepContext) -> Tensor | None:
-        if ctx.task == 0 or self.cfg.mas_lambda == 0:
-            return None
-        total = sum(
-            (getattr(self, f"importance_{i}") * (w - getattr(self, f"anchor_{i}")).pow(2)).sum()
-            for i, w in enumerate(self.weights)
-        )
-        return self.cfg.mas_lambda * total
+    @property
+    def strength(self) -> float:
+        return self.cfg.mas_lambda
 
     def on_task_end(self, task: int, data: TaskData) -> None:
         n, t, d = data.demos.shape
@@ -84,5 +74,5 @@ class MemoryAwareSynapses(ConditionedNodeMethod):
         )
         with torch.no_grad():
             for i, w in enumerate(self.weights):
-                getattr(self, f"importance_{i}").add_(importance[i])
-                getattr(self, f"anchor_{i}").copy_(w)
+                self._buf("importance", i).add_(importance[i])
+                self._buf("anchor", i).copy_(w)

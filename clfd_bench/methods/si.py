@@ -13,15 +13,15 @@ regularised; embeddings are not.
 from __future__ import annotations
 
 import torch
-from torch import Tensor
 
-from clfd_bench.methods.base import StepContext, TaskData
+from clfd_bench.methods.base import TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
+from clfd_bench.methods.importance import ImportancePenaltyMethod
 
 __all__ = ["SynapticIntelligence"]
 
 
-class SynapticIntelligence(ConditionedNodeMethod):
+class SynapticIntelligence(ImportancePenaltyMethod):
     """SI (see the module docstring). Buffers: ``omega`` (running path integral of the
     current task), ``importance`` (Omega), ``anchor`` (theta*), ``previous`` (theta before
     the last step)."""
@@ -33,27 +33,17 @@ class SynapticIntelligence(ConditionedNodeMethod):
         super().__init__(node, cfg)
         for i, w in enumerate(self.weights):
             self.register_buffer(f"omega_{i}", torch.zeros_like(w))
-            self.register_buffer(f"importance_{i}", torch.zeros_like(w))
-            self.register_buffer(f"anchor_{i}", w.detach().clone())
             self.register_buffer(f"previous_{i}", w.detach().clone())
 
-    def _buf(self, kind: str, i: int) -> Tensor:
-        return getattr(self, f"{kind}_{i}")
+    @property
+    def strength(self) -> float:
+        return self.cfg.si_c
 
     def on_task_start(self, task: int, data: TaskData) -> None:
         with torch.no_grad():
             for i, w in enumerate(self.weights):
                 self._buf("omega", i).zero_()
                 self._buf("previous", i).copy_(w)
-
-    def extra_loss(self, ctx: StepContext) -> Tensor | None:
-        if ctx.task == 0 or self.cfg.si_c == 0:
-            return None
-        total = sum(
-            (self._buf("importance", i) * (w - self._buf("anchor", i)).pow(2)).sum()
-            for i, w in enumerate(self.weights)
-        )
-        return self.cfg.si_c * total
 
     @torch.no_grad()
     def after_step(self) -> None:
