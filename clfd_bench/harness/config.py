@@ -20,7 +20,10 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-import tomllib
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
 
 from clfd_bench.learning.batches import BATCH_KINDS
 from clfd_bench.learning.hnet_reg import REG_MODES
