@@ -106,3 +106,21 @@ def test_ray_executor_gives_identical_tables(local_grid, tmp_path):
     assert _table(tmp_path) == _table(out)
     for spec in result.specs:
         assert _run_errors(tmp_path, spec) == _run_errors(out, spec)
+
+
+def test_overrides_name_the_run_and_reach_training(tmp_path):
+    """A hyperparameter variant gets its own run directory and its ``--set`` reaches the config."""
+    from clfd_bench.harness.config import resolve_config
+
+    plain = RunSpec("helloworld", "hn", "smoke", 0)
+    variant = RunSpec("helloworld", "hn", "smoke", 0, overrides=[("beta", "0.0042")])
+    assert variant.run_dir(tmp_path) != plain.run_dir(tmp_path)
+    assert variant.name.endswith("_beta=0.0042")
+    assert RunSpec(**json.loads(json.dumps(variant.to_dict()))) == variant  # Ray/failed.json
+    argv = variant.train_argv(tmp_path)
+    sets = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+    assert sets == ["beta=0.0042"]
+    config = resolve_config("hn", "helloworld", "smoke", overrides=sets)
+    assert config.to_dict()["parts"]["position"]["beta"] == pytest.approx(0.0042)
+    with pytest.raises(ValueError, match="directory name"):
+        RunSpec("helloworld", "hn", "smoke", 0, overrides=[("beta", "1/2")])

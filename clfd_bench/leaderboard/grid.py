@@ -9,6 +9,7 @@ resumes by itself).
 from __future__ import annotations
 
 import json
+import re
 import sys
 from dataclasses import asdict, dataclass
 from itertools import product
@@ -18,6 +19,7 @@ from typing import Any
 __all__ = ["RunSpec", "make_grid", "read_results", "run_status"]
 
 FAILED_FILE = "failed.json"
+_SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
 RESULTS_FILE = "results.json"
 
 
@@ -34,6 +36,8 @@ class RunSpec:
         node: ``"t"`` (NODE with time input) or ``"i"`` (without).
         tasks: stop after this many tasks (None: all).
         sim: execute predictions in simulation during evaluation.
+        overrides: ``(key, value)`` pairs passed to training as ``--set key=value``
+            (hyperparameter studies); part of the run's name so variants never collide.
     """
 
     dataset: str
@@ -44,15 +48,27 @@ class RunSpec:
     node: str = "t"
     tasks: int | None = None
     sim: bool = True
+    overrides: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        pairs = tuple(sorted((str(k), str(v)) for k, v in self.overrides))
+        for key, value in pairs:
+            if not (_SAFE.fullmatch(key) and _SAFE.fullmatch(value)):
+                raise ValueError(
+                    f"override {key}={value!r}: keys and values of a grid run may only use "
+                    "letters, digits and . _ + - (they become part of its directory name)"
+                )
+        object.__setattr__(self, "overrides", pairs)
 
     @property
     def name(self) -> str:
         """A short unique name, also the run's directory below ``<out>/runs/``."""
         tasks = f"_k{self.tasks}" if self.tasks is not None else ""
         sim = "" if self.sim else "_nosim"
+        sets = "".join(f"_{k}={v}" for k, v in self.overrides)
         return (
             f"{self.dataset}/{self.method}/{self.profile}_node{self.node}"
-            f"_o{self.order}_s{self.seed}{tasks}{sim}"
+            f"_o{self.order}_s{self.seed}{tasks}{sim}{sets}"
         )
 
     def run_dir(self, root: Path) -> Path:
@@ -71,6 +87,8 @@ class RunSpec:
             argv += ["--tasks", str(self.tasks)]
         if not self.sim:
             argv.append("--no-sim")
+        for key, value in self.overrides:
+            argv += ["--set", f"{key}={value}"]
         return argv
 
     def num_tasks(self) -> int:
@@ -81,6 +99,7 @@ class RunSpec:
         return total if self.tasks is None else min(self.tasks, total)
 
     def to_dict(self) -> dict[str, Any]:
+        """The spec as plain data; ``RunSpec(**spec.to_dict())`` gives it back."""
         return asdict(self)
 
 

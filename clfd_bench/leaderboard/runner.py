@@ -13,7 +13,7 @@ from clfd_bench.leaderboard.plots import plot_all
 from clfd_bench.leaderboard.report import write_tables
 from clfd_bench.progress import progress
 
-__all__ = ["LeaderboardResult", "collect", "run_leaderboard"]
+__all__ = ["GridRun", "LeaderboardResult", "collect", "run_leaderboard", "run_specs"]
 
 
 @dataclass
@@ -47,6 +47,52 @@ def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
     return records
 
 
+@dataclass
+class GridRun:
+    """What :func:`run_specs` did: runs trained now, skipped as done, failed; final records."""
+
+    specs: list[RunSpec]
+    trained: list[RunSpec]
+    skipped: list[RunSpec]
+    failed: list[RunOutcome]
+    records: list[RunRecord]
+
+
+def run_specs(
+    specs: list[RunSpec],
+    out: Path,
+    executor: str = "local",
+    workers: int = 1,
+    address: str | None = None,
+    desc: str = "grid",
+) -> GridRun:
+    """Run (or resume) the specs that are not done yet, then read every run's state.
+
+    The building block of the leaderboard and of the studies (:mod:`clfd_bench.studies`):
+    finished runs are skipped, half-finished ones resume, a crash is recorded in the run's
+    ``failed.json`` and the grid goes on. Runs go to ``out/runs/<spec.name>``.
+    """
+    out = Path(out)
+    todo = [s for s in specs if run_status(s, out) != "done"]
+    skipped = [s for s in specs if s not in todo]
+    failed: list[RunOutcome] = []
+    if todo:
+        bar = progress(total=len(todo), desc=f"{desc} ({len(skipped)} done before)")
+
+        def on_done(outcome: RunOutcome) -> None:
+            bar.update(1)
+            state = "ok" if outcome.ok else f"FAILED: {outcome.error}"
+            bar.write(f"[grid] {outcome.spec.name}: {state} ({outcome.seconds:.0f} s)")
+            if not outcome.ok:
+                failed.append(outcome)
+
+        try:
+            execute_grid(todo, out, executor, workers, address, on_done)
+        finally:
+            bar.close()
+    return GridRun(specs, todo, skipped, failed, collect(specs, out))
+
+
 def run_leaderboard(
     dataset: str,
     methods: list[str],
@@ -73,24 +119,8 @@ def run_leaderboard(
     start = time.perf_counter()
     out = Path(out)
     specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim)
-    todo = [s for s in specs if run_status(s, out) != "done"]
-    skipped = [s for s in specs if s not in todo]
-    failed: list[RunOutcome] = []
-    if todo:
-        bar = progress(total=len(todo), desc=f"grid {dataset} ({len(skipped)} done before)")
-
-        def on_done(outcome: RunOutcome) -> None:
-            bar.update(1)
-            state = "ok" if outcome.ok else f"FAILED: {outcome.error}"
-            bar.write(f"[grid] {outcome.spec.name}: {state} ({outcome.seconds:.0f} s)")
-            if not outcome.ok:
-                failed.append(outcome)
-
-        try:
-            execute_grid(todo, out, executor, workers, address, on_done)
-        finally:
-            bar.close()
-    records = collect(specs, out)
+    grid = run_specs(specs, out, executor, workers, address, desc=f"grid {dataset}")
+    records = grid.records
     rows = aggregate(records, methods)
     title = f"{dataset} ({profile})"
     figures = plot_all(records, rows, methods, out, title)
@@ -109,5 +139,5 @@ def run_leaderboard(
     }
     files = write_tables(rows, out, meta) + figures
     return LeaderboardResult(
-        specs, todo, skipped, failed, rows, files, time.perf_counter() - start
+        specs, grid.trained, grid.skipped, grid.failed, rows, files, time.perf_counter() - start
     )
