@@ -128,3 +128,17 @@ def test_replay_draws_every_seen_task():
     picks = {method.pick_task(2, gen) for _ in range(100)}
     assert picks == {0, 1, 2}
     assert torch.equal(method.replay_data(0).demos, _data(0).demos)
+
+
+def test_importance_methods_count_their_penalty_state_in_the_model_size():
+    """FS as in the paper: SI keeps weights + importance + anchor + path integral + previous
+    weights (5x the NODE; the paper's HelloWorld FS 0.19 implies 5.0x), MAS weights +
+    importance + anchor (3x). FT keeps the NODE alone."""
+    sizes = {}
+    for name in ("ft", "si", "mas"):
+        method = _method(name)
+        _learn(method, 0)
+        sizes[name] = method.num_params()
+    node = sizes["ft"] - CFG.task_emb_dim  # the NODE's weights, without task 0's embedding
+    assert sizes["si"] == sizes["ft"] + 4 * node
+    assert sizes["mas"] == sizes["ft"] + 2 * node
