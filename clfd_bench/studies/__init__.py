@@ -1,0 +1,13 @@
+"""The paper's studies, reproduced with execution in simulation.
+
+- :mod:`~clfd_bench.studies.start_robustness`: predictions from novel start positions.
+- :mod:`~clfd_bench.studies.task_order`: the CL metrics under task orders 0, 1, 2.
+- :mod:`~clfd_bench.studies.sensitivity`: robustness to the regularisation hyperparameters.
+- :mod:`~clfd_bench.studies.inference_timing`: hypernetwork → NODE generation, a NODE step, a
+  1000-step trajectory.
+- :mod:`~clfd_bench.studies.paper_grid` / :mod:`~clfd_bench.studies.paper_tables`: the full
+  paper grid and its tables next to the paper's own numbers
+  (:mod:`~clfd_bench.studies.paper_numbers`).
+
+Each has a command: ``clfd-bench study start|order|sensitivity|timing`` and ``clfd-bench paper``.
+"""
