@@ -1,0 +1,88 @@
+"""``clfd-bench study order``: the CL methods under task orders 0, 1, 2 of each dataset."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from clfd_bench.cli.leaderboard import _ints, _names
+
+__all__ = ["register"]
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from clfd_bench.data import DATASETS
+    from clfd_bench.methods import get_method_class
+    from clfd_bench.studies.task_order import run_order_study, task_names
+
+    for dataset in args.datasets:
+        if dataset not in DATASETS:
+            print(f"unknown dataset {dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+            return 2
+    try:
+        for method in args.methods:
+            get_method_class(method)
+        for dataset in args.datasets:
+            for order in args.orders:
+                task_names(dataset, order)
+    except (KeyError, ValueError) as exc:
+        print(exc.args[0], file=sys.stderr)
+        return 2
+    if not (args.methods and args.orders and args.seeds):
+        print("--methods, --orders and --seeds each need at least one value", file=sys.stderr)
+        return 2
+    result = run_order_study(
+        datasets=args.datasets,
+        methods=args.methods,
+        orders=args.orders,
+        seeds=args.seeds,
+        profile=args.profile,
+        out=Path(args.out),
+        node=args.node,
+        tasks=args.tasks,
+        sim=not args.no_sim,
+        executor=args.executor,
+        workers=args.workers,
+        address=args.address,
+    )
+    print((Path(args.out) / "order_table.md").read_text())
+    for path in result.files:
+        print(f"[study order] wrote {path}")
+    print(result.summary())
+    return 1 if result.failed else 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``study order`` subcommand."""
+    p = subparsers.add_parser(
+        "order",
+        help="robustness to task order: train each method on several task orders and compare",
+        description="Trains every (dataset, method, order, seed) run that is not finished yet "
+        "(through the leaderboard grid: a killed study resumes, a crashed run is reported and "
+        "does not stop the others), then writes order_table.md/.csv/.json (ACC, REM, CL_score, "
+        "exec ACC per dataset x order x method, and each method's spread across orders) and "
+        "one figure per dataset, order_<dataset>.png, with one column per order.",
+    )
+    p.add_argument("--datasets", type=_names, default=_names("lasa,helloworld,robotasks"),
+                   help="comma-separated datasets (default lasa,helloworld,robotasks)")
+    p.add_argument("--methods", type=_names, default=_names("sg,rep,hn,chn"),
+                   help="comma-separated CL methods (default sg,rep,hn,chn, as in the paper)")
+    p.add_argument("--orders", type=_ints, default=[0, 1, 2],
+                   help="comma-separated task orders (default 0,1,2)")
+    p.add_argument("--seeds", type=_ints, default=[0, 1, 2],
+                   help="comma-separated seeds (default 0,1,2)")
+    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--node", choices=("t", "i"), default="t",
+                   help="NODE with time input (t, default) or without (i)")
+    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
+    p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
+    p.add_argument("--out", required=True, help="output directory (runs, tables, figures)")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local processes (default) or a Ray cluster")
+    p.add_argument("--workers", type=int, default=1,
+                   help="parallel training processes (default 1)")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster address (default: start a local Ray instance)")
+    p.set_defaults(func=_run)
