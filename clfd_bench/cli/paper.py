@@ -1,0 +1,214 @@
+"""``clfd-bench paper``: the paper's full grid (list, run) and its tables next to ours.
+
+    clfd-bench paper list                                   # 495 runs: counts and cost
+    clfd-bench paper list --datasets helloworld --runs --out results   # every run's status
+    clfd-bench paper run --datasets helloworld --seeds 0 --orders 0 --out results
+    clfd-bench paper run --executor ray --address auto --workers 32 --out results
+    clfd-bench paper tables --datasets helloworld --out results
+
+The grid: LASA and HelloWorld with SG FT REP SI MAS HN CHN and NODE^T / NODE^I, RoboTasks
+with SG FT REP HN CHN and NODE^T, seeds 0-4, task orders 0-2, profile ``paper``; every
+dimension can be narrowed. ``run`` trains only what is not finished (a killed grid resumes)
+and then writes the tables; ``tables`` reads whatever runs are finished under
+``--out/runs`` and writes ``paper_tables.md``/``.csv``/``.json`` and ``paper_diff.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from clfd_bench.cli.leaderboard import _ints, _names
+
+__all__ = ["register"]
+
+
+def _grid(args: argparse.Namespace):
+    from clfd_bench.studies.paper_grid import paper_grid
+
+    return paper_grid(
+        datasets=args.datasets, methods=args.methods, nodes=args.nodes, seeds=args.seeds,
+        orders=args.orders, profile=args.profile, tasks=args.tasks, sim=not args.no_sim,
+    )
+
+
+def _hours(seconds: float | None) -> str:
+    return "n/a" if seconds is None else f"{seconds / 3600:.1f} h"
+
+
+def _list(args: argparse.Namespace) -> int:
+    from collections import Counter
+
+    from clfd_bench.leaderboard.grid import run_status
+    from clfd_bench.studies.paper_grid import grid_cost, load_bench_rates
+
+    specs = _grid(args)
+    rates = load_bench_rates(args.bench_json) if args.bench_json else {}
+    rows = grid_cost(specs, rates)
+    status = {}
+    if args.out:
+        status = {s: run_status(s, Path(args.out)) for s in specs}
+    print(f"paper grid, profile {args.profile!r}: {len(specs)} runs")
+    header = (f"{'dataset':<11} {'method':<6} {'node':<4} {'runs':>5} {'tasks':>5} "
+              f"{'its/run':>9} {'GPU/run':>8} {'CPU/run':>8} {'CPU total':>10}"
+              + ("  done/partial/failed/missing" if status else ""))
+    print(header)
+    print("-" * len(header))
+    cpu_total = 0.0
+    cpu_known = True
+    for r in rows:
+        total = None if r.cpu_s is None else r.cpu_s * r.runs
+        cpu_known &= total is not None
+        cpu_total += total or 0.0
+        line = (f"{r.dataset:<11} {r.method:<6} {r.node:<4} {r.runs:>5} {r.tasks:>5} "
+                f"{r.iterations:>9,} {_hours(r.gpu_s):>8} {_hours(r.cpu_s):>8} "
+                f"{_hours(total):>10}")
+        if status:
+            c = Counter(status[s] for s in specs
+                        if (s.dataset, s.method, s.node) == (r.dataset, r.method, r.node))
+            line += f"  {c['done']}/{c['partial']}/{c['failed']}/{c['missing']}"
+        print(line)
+    iters = sum(r.total_iterations for r in rows)
+    gpu = [r.gpu_s * r.runs for r in rows if r.gpu_s is not None]
+    print(f"total: {len(specs)} runs, {iters:,} training iterations; "
+          + (f"paper's GPU time {sum(gpu) / 3600:,.0f} GPU-hours (its wall-clock tables); "
+             if len(gpu) == len(rows) else "")
+          + (f"this CPU ≈ {cpu_total / 3600:,.0f} core-hours at 1 torch thread (bench train "
+             "speeds; HN/CHN slow down as tasks accrue, so a lower bound)" if cpu_known and rates
+             else "CPU time: pass --bench-json FILE from `clfd-bench bench train --json FILE`"))
+    if args.runs:
+        print()
+        for s in specs:
+            print(f"{status.get(s, '?'):<8} {s.name}")
+    if status:
+        c = Counter(status.values())
+        print(f"\nunder {args.out}: {c['done']} done, {c['partial']} partial, "
+              f"{c['failed']} failed, {c['missing']} missing")
+    return 0
+
+
+def _tables(args: argparse.Namespace, specs=None) -> int:
+    import statistics
+
+    from clfd_bench.studies.paper_tables import build_tables, write_outputs
+
+    out = Path(args.out)
+    if not out.is_dir():
+        print(f"clfd-bench paper tables: {out} does not exist; train the grid first with "
+              f"`clfd-bench paper run [...] --out {out}`", file=sys.stderr)
+        return 2
+    specs = specs if specs is not None else _grid(args)
+    tables, times, records = build_tables(specs, out)
+    meta = {
+        "profile": args.profile,
+        "datasets": sorted({s.dataset for s in specs}),
+        "methods": sorted({s.method for s in specs}),
+        "nodes": sorted({s.node for s in specs}),
+        "seeds": sorted({s.seed for s in specs}),
+        "orders": sorted({s.order for s in specs}),
+        "tasks": args.tasks,
+        "runs": {r.spec.name: r.status for r in records},
+    }
+    files = write_outputs(tables, times, out, meta)
+    done = sum(r.status == "done" for r in records)
+    print((out / "paper_tables.md").read_text())
+    for path in files:
+        print(f"[paper] wrote {path}")
+    # one-paragraph summary
+    diffs = [abs(r.diff(c)) for t in tables for r in t.rows for c in ("ACC", "REM", "CL_score")
+             if math.isfinite(r.diff(c))]
+    filled = sum(1 for t in tables for r in t.rows if r.runs_done)
+    cells = sum(len(t.rows) for t in tables)
+    summary = (f"[paper] {done} of {len(records)} selected runs are finished; {len(tables)} "
+               f"CL table(s), {filled} of {cells} method rows filled")
+    if diffs:
+        summary += (f"; |ours − paper| over ACC, REM, CL_score: median "
+                    f"{statistics.median(diffs):.2f}, max {max(diffs):.2f}")
+    if args.profile != "paper":
+        summary += (f". Profile {args.profile!r} is not the paper's training budget, so "
+                    "differences are expected")
+    if done < len(records):
+        summary += (f". {len(records) - done} run(s) missing: `clfd-bench paper run` with the "
+                    "same flags trains them")
+    print(summary + ".")
+    if done == 0:
+        print(f"clfd-bench paper tables: no finished runs under {out}/runs for this selection; "
+              f"run `clfd-bench paper run [same flags] --out {out}`", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from clfd_bench.harness.config import resolve_config
+    from clfd_bench.leaderboard.runner import run_specs
+
+    specs = _grid(args)
+    for key in dict.fromkeys((s.method, s.dataset, s.profile) for s in specs):
+        resolve_config(key[0], key[1], key[2])  # a missing profile table fails here, not later
+    grid = run_specs(specs, Path(args.out), args.executor, args.workers, args.address,
+                     desc="paper grid")
+    print(f"[paper] {len(specs)} runs: {len(grid.trained)} trained or resumed now, "
+          f"{len(grid.skipped)} already done, {len(grid.failed)} failed")
+    code = _tables(args, specs)
+    return 1 if grid.failed else code
+
+
+def _safe(func):
+    def wrapped(args: argparse.Namespace) -> int:
+        from clfd_bench.harness.config import ConfigError
+        from clfd_bench.studies.paper_grid import GridError
+
+        try:
+            return func(args)
+        except (GridError, ConfigError) as exc:
+            print(f"clfd-bench paper {args.paper_command}: error: {exc}", file=sys.stderr)
+            return 2
+
+    return wrapped
+
+
+def _add_grid_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--datasets", type=_names, default=None,
+                   help="comma-separated: lasa,helloworld,robotasks (default all)")
+    p.add_argument("--methods", type=_names, default=None,
+                   help="comma-separated: sg,ft,rep,si,mas,hn,chn (default: the paper's for "
+                        "each dataset; RoboTasks has no SI/MAS)")
+    p.add_argument("--nodes", type=_names, default=None,
+                   help="comma-separated t,i (default: the paper's; RoboTasks: t only)")
+    p.add_argument("--seeds", type=_ints, default=None, help="comma-separated (default 0-4)")
+    p.add_argument("--orders", type=_ints, default=None, help="task orders (default 0,1,2)")
+    p.add_argument("--profile", default="paper", help="paper (default), fast or smoke")
+    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
+    p.add_argument("--no-sim", action="store_true",
+                   help="train without executing predictions in simulation")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``paper`` command with its ``list``, ``run`` and ``tables`` subcommands."""
+    p = subparsers.add_parser(
+        "paper", help="the paper's full grid (list, run) and its tables next to ours",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = p.add_subparsers(dest="paper_command", metavar="ACTION", required=True)
+    ls = sub.add_parser("list", help="runs of the grid: counts, iterations, cost, status")
+    _add_grid_flags(ls)
+    ls.add_argument("--out", default=None, help="results directory to read run status from")
+    ls.add_argument("--runs", action="store_true", help="print every run (with its status)")
+    ls.add_argument("--bench-json", action="append", default=[], metavar="FILE",
+                    help="`clfd-bench bench train --json` output(s) for a CPU time estimate")
+    ls.set_defaults(func=_safe(_list))
+    run = sub.add_parser("run", help="train the grid's unfinished runs, then write the tables")
+    _add_grid_flags(run)
+    run.add_argument("--out", required=True, help="results directory (runs go to OUT/runs)")
+    run.add_argument("--executor", choices=("local", "ray"), default="local",
+                     help="local processes (default) or a Ray cluster")
+    run.add_argument("--workers", type=int, default=1, help="parallel runs (default 1)")
+    run.add_argument("--address", default=None,
+                     help="Ray cluster address (default: start a local Ray instance)")
+    run.set_defaults(func=_safe(_run))
+    tb = sub.add_parser("tables", help="the paper's tables from the finished runs, vs the paper")
+    _add_grid_flags(tb)
+    tb.add_argument("--out", required=True, help="results directory holding OUT/runs")
+    tb.set_defaults(func=_safe(_tables))
