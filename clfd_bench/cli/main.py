@@ -11,11 +11,21 @@ from clfd_bench import __version__
 
 __all__ = ["build_parser", "main"]
 
-COMMANDS: tuple[str, ...] = ("data", "train", "evaluate", "leaderboard", "replay", "video")
+COMMANDS: tuple[str, ...] = (
+    "data", "train", "evaluate", "leaderboard", "paper", "replay", "video",
+)  # fmt: skip
 """Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
 
 BENCH_COMMANDS: tuple[str, ...] = ("bench_train", "bench_sim")
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench bench <name>`` subcommand."""
+
+STUDY_COMMANDS: tuple[str, ...] = (
+    "study_start",
+    "study_order",
+    "study_sensitivity",
+    "study_timing",
+)
+"""Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench study <name>`` subcommand."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,6 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
         bench_sub = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
         for name in BENCH_COMMANDS:
             importlib.import_module(f"clfd_bench.cli.{name}").register(bench_sub)
+    study = sub.add_parser(
+        "study", help="the paper's studies: start robustness, task order, sensitivity, timing"
+    )
+    study_sub = study.add_subparsers(dest="study_command", metavar="STUDY", required=True)
+    for name in STUDY_COMMANDS:
+        importlib.import_module(f"clfd_bench.cli.{name}").register(study_sub)
     return parser
 
 
