@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from clfd_bench.io import atomic_write_json, atomic_write_text
+from clfd_bench.io import atomic_write_json, atomic_write_text, json_safe
 from clfd_bench.leaderboard.aggregate import CRITERIA, RunRecord, quartiles
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.leaderboard.plots import _plt, _save
@@ -275,16 +275,6 @@ def _f(value: float, digits: int = 4) -> str:
     return "-" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
 
 
-def _json(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json(v) for v in value]
-    return value
-
-
 def _markdown(summary: dict, scores: list[ConfigScore], meta: dict[str, Any]) -> str:
     ranges = "; ".join(
         f"{m.upper()}: " + ", ".join(f"{k} in [{lo:g}, {hi:g}]" for k, (lo, hi) in r.items())
@@ -345,10 +335,10 @@ def write_sensitivity_tables(
     atomic_write_text(cs, buffer.getvalue())
     payload = {
         "schema_version": 1,
-        "meta": _json(meta),
-        "summary": _json(summary),
+        "meta": json_safe(meta),
+        "summary": json_safe(summary),
         "configs": [
-            _json({"method": s.method, "run": s.name, "status": s.status, "values": s.values,
+            json_safe({"method": s.method, "run": s.name, "status": s.status, "values": s.values,
                    "criteria": s.criteria, "CL_score": s.cl_score,
                    "CL_stability": s.cl_stability, "exec_ACC": s.exec_acc})
             for s in scores

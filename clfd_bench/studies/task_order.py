@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from clfd_bench.io import atomic_write_json, atomic_write_text
+from clfd_bench.io import atomic_write_json, atomic_write_text, json_safe
 from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
 from clfd_bench.leaderboard.grid import RunSpec, make_grid
 from clfd_bench.leaderboard.plots import _errors_after, _median_band, _plt, _save
@@ -165,14 +165,6 @@ def _fmt(value: float | None) -> str:
     return f"{value:.2f}"
 
 
-def _json(value: Any) -> Any:
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    if isinstance(value, list):
-        return [_json(v) for v in value]
-    return value
-
-
 def _markdown(cells: list[OrderCell], spread: list[dict[str, Any]], meta: dict[str, Any]) -> str:
     lines = [
         "# Robustness to task order",
@@ -244,10 +236,10 @@ def write_order_tables(
             {"dataset": c.dataset, "order": c.order, "method": c.method,
              "tasks": list(task_names(c.dataset, c.order)[: meta.get("tasks") or None]),
              "runs_ok": c.runs_ok, "runs_failed": c.runs_failed, "rank": c.rank,
-             "metrics": {k: _json(v) for k, v in c.values.items()}}
+             "metrics": {k: json_safe(v) for k, v in c.values.items()}}
             for c in cells
         ],  # fmt: skip
-        "spread": [{k: _json(v) for k, v in e.items()} for e in spread],
+        "spread": [{k: json_safe(v) for k, v in e.items()} for e in spread],
     }
     atomic_write_json(js, payload)
     return [md, cs, js]
