@@ -23,6 +23,18 @@ def _names(text: str) -> list[str]:
     return [x.strip().lower() for x in text.split(",") if x.strip()]
 
 
+def add_executor_arguments(
+    p: argparse.ArgumentParser, workers: int = 1, workers_help: str = "default 1"
+) -> None:
+    """``--executor``, ``--workers``, ``--address``: where a grid of training runs runs."""
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local processes (default) or a Ray cluster")
+    p.add_argument("--workers", type=int, default=workers,
+                   help=f"parallel local training processes ({workers_help})")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster address (default: start a local Ray instance)")
+
+
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -84,10 +96,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", default="results", help="output directory (default results/)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1)),
-                   help="parallel local processes (default: CPU count)")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start a local Ray instance)")
+    add_executor_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count")
     p.set_defaults(func=_run)

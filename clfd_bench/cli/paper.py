@@ -20,7 +20,7 @@ import math
 import sys
 from pathlib import Path
 
-from clfd_bench.cli.leaderboard import _ints, _names
+from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
 
 __all__ = ["register"]
 
@@ -202,11 +202,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run = sub.add_parser("run", help="train the grid's unfinished runs, then write the tables")
     _add_grid_flags(run)
     run.add_argument("--out", required=True, help="results directory (runs go to OUT/runs)")
-    run.add_argument("--executor", choices=("local", "ray"), default="local",
-                     help="local processes (default) or a Ray cluster")
-    run.add_argument("--workers", type=int, default=1, help="parallel runs (default 1)")
-    run.add_argument("--address", default=None,
-                     help="Ray cluster address (default: start a local Ray instance)")
+    add_executor_arguments(run)
     run.set_defaults(func=_safe(_run))
     tb = sub.add_parser("tables", help="the paper's tables from the finished runs, vs the paper")
     _add_grid_flags(tb)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _ints, _names
+from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
 
 __all__ = ["register"]
 
@@ -79,10 +79,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figures)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=1,
-                   help="parallel training processes (default 1)")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start a local Ray instance)")
+    add_executor_arguments(p)
     p.set_defaults(func=_run)

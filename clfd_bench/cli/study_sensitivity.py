@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _names
+from clfd_bench.cli.leaderboard import _names, add_executor_arguments
 
 __all__ = ["register"]
 
@@ -14,12 +14,12 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from clfd_bench.data import DATASETS
-    from clfd_bench.harness.config import ConfigError, resolve_config
+    from clfd_bench.harness.config import ConfigError
     from clfd_bench.methods import get_method_class
     from clfd_bench.studies.sensitivity import (
         apply_ranges,
         default_ranges,
-        draw_configs,
+        plan_sensitivity,
         run_sensitivity_study,
     )
 
@@ -37,10 +37,8 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     try:
         ranges = apply_ranges(default_ranges(), args.methods, args.range)
-        for draw in draw_configs(args.methods, args.configs, args.seed, ranges):
-            resolve_config(draw.method, args.dataset, args.profile, seed=args.seed,
-                           node=args.node, tasks=args.tasks,
-                           overrides=[f"{k}={v}" for k, v in draw.values])  # fmt: skip
+        plan_sensitivity(args.dataset, args.methods, args.configs, args.seed, args.profile,
+                         ranges, node=args.node, tasks=args.tasks, sim=not args.no_sim)
     except (ValueError, ConfigError) as exc:
         print(f"study sensitivity: {exc}", file=sys.stderr)
         return 2
@@ -97,10 +95,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="skip execution in simulation (the study's scores are trajectory-based; "
                    "execution adds exec ACC per configuration)")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figure)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=1,
-                   help="parallel training processes (default 1)")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start a local Ray instance)")
+    add_executor_arguments(p)
     p.set_defaults(func=_run)

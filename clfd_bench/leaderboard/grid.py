@@ -87,9 +87,24 @@ class RunSpec:
             argv += ["--tasks", str(self.tasks)]
         if not self.sim:
             argv.append("--no-sim")
-        for key, value in self.overrides:
-            argv += ["--set", f"{key}={value}"]
+        for setting in self.settings:
+            argv += ["--set", setting]
         return argv
+
+    @property
+    def settings(self) -> list[str]:
+        """The overrides as ``key=value`` strings, as ``--set`` takes them."""
+        return [f"{key}={value}" for key, value in self.overrides]
+
+    def config(self):
+        """The run's resolved configuration (:class:`~clfd_bench.harness.config.RunConfig`);
+        raises ``ConfigError`` for an unknown key or value before anything is trained."""
+        from clfd_bench.harness.config import resolve_config
+
+        return resolve_config(
+            self.method, self.dataset, self.profile, seed=self.seed, order=self.order,
+            node=self.node, tasks=self.tasks, overrides=self.settings,
+        )  # fmt: skip
 
     def num_tasks(self) -> int:
         """How many tasks the run learns: ``tasks`` or all of the dataset's."""

@@ -180,6 +180,31 @@ def sensitivity_specs(
     ]
 
 
+def plan_sensitivity(
+    dataset: str,
+    methods: list[str],
+    configs: int,
+    seed: int,
+    profile: str,
+    ranges: Ranges | None = None,
+    node: str = "t",
+    tasks: int | None = None,
+    sim: bool = True,
+) -> tuple[Ranges, list[ConfigDraw], list[RunSpec]]:
+    """The study's ranges, draws and runs, each run's configuration checked before any
+    training (``ValueError`` / ``ConfigError`` for a bad range or a key a method lacks).
+
+    Args:
+        ranges: ``{method: {key: (low, high)}}``; default the paper's (:func:`default_ranges`).
+    """
+    ranges = apply_ranges(default_ranges(), methods, []) if ranges is None else ranges
+    draws = draw_configs(methods, configs, seed, ranges)
+    specs = sensitivity_specs(draws, dataset, profile, seed, node, tasks, sim)
+    for spec in specs:
+        spec.config()
+    return ranges, draws, specs
+
+
 # ------------------------------------------------------------------------------ scores
 @dataclass
 class ConfigScore:
@@ -452,16 +477,11 @@ def run_sensitivity_study(
             (:func:`default_ranges`).
         seed: seeds both the draw and every training run.
     """
-    from clfd_bench.harness.config import resolve_config
-
-    ranges = apply_ranges(default_ranges(), methods, []) if ranges is None else ranges
-    draws = draw_configs(methods, configs, seed, ranges)
-    for d in draws:  # a key the method does not have fails here, before any training
-        resolve_config(d.method, dataset, profile, seed=seed, node=node, tasks=tasks,
-                       overrides=[f"{k}={v}" for k, v in d.values])  # fmt: skip
+    ranges, draws, specs = plan_sensitivity(
+        dataset, methods, configs, seed, profile, ranges, node=node, tasks=tasks, sim=sim
+    )
     start = time.perf_counter()
     out = Path(out)
-    specs = sensitivity_specs(draws, dataset, profile, seed, node, tasks, sim)
     atomic_write_json(out / "configs.json", {
         "seed": seed, "dataset": dataset, "profile": profile, "node": node, "tasks": tasks,
         "ranges": {m: {k: list(v) for k, v in r.items()} for m, r in ranges.items()},
