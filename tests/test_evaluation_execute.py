@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from clfd_bench.data import load_dataset
-from clfd_bench.evaluation.sim_eval import execute_predictions, get_env, sim_fields, tool_path
+from clfd_bench.execution.env_pool import get_env
+from clfd_bench.execution.execute import execute_predictions
+from clfd_bench.execution.scoring import sim_fields
+from clfd_bench.execution.trace import tool_path
 
 
 @pytest.fixture(scope="module")

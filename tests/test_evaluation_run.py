@@ -9,7 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from clfd_bench.evaluation.sim_eval import CACHE_FILE, evaluate_run
+from clfd_bench.execution.cache import CACHE_FILE
+from clfd_bench.execution.evaluate import evaluate_run
 from clfd_bench.viz.rerun_log import rrd_entity_paths
 
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")

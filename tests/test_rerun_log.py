@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from clfd_bench.data import load_dataset
-from clfd_bench.evaluation.sim_eval import execute, get_env
+from clfd_bench.execution.env_pool import get_env
+from clfd_bench.execution.execute import execute
 from clfd_bench.viz.rerun_log import RolloutLogger, rrd_entity_paths
 
 

@@ -12,7 +12,7 @@ import gymnasium as gym
 import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
-from clfd_bench.sim.replay import replay
+from clfd_bench.execution.replay import replay
 
 CASES = {
     "clfd/BoxOpening-v0": ((0, 4), "truncate", 4),

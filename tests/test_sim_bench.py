@@ -6,7 +6,7 @@ import argparse
 import json
 
 from clfd_bench.cli import bench_sim
-from clfd_bench.sim.bench import target_for
+from clfd_bench.execution.bench import target_for
 
 
 def test_bench_sim_json(capsys):

@@ -9,8 +9,8 @@ import pytest
 
 import clfd_bench  # noqa: F401
 from clfd_bench.envs.base import PandaEnv, load_task
+from clfd_bench.execution.rollout import rollout
 from clfd_bench.sim.robot import robot_model
-from clfd_bench.sim.rollout import rollout
 from clfd_bench.sim.start_configs import backward_start_configs
 
 

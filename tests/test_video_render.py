@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from clfd_bench.data import load_dataset
-from clfd_bench.evaluation.sim_eval import get_env
+from clfd_bench.execution.env_pool import get_env
 from clfd_bench.viz.video import (
     VideoStyle,
     VideoWriter,

@@ -11,7 +11,7 @@ import pytest
 
 import clfd_bench  # noqa: F401
 from clfd_bench.cli import replay as replay_cli
-from clfd_bench.sim.replay import PERTURBATIONS, replay
+from clfd_bench.execution.replay import PERTURBATIONS, replay
 
 CASES = [("clfd/HelloWorld-e-v0", [0, 5]), ("clfd/HelloWorld-d-v0", [2, 7]),
          ("clfd/LASA-Sine-v0", [0]), ("clfd/LASA-GShape-v0", [3])]

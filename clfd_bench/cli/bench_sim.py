@@ -1,6 +1,6 @@
 """``clfd-bench bench sim``: simulated seconds per wall second of each env, IK included.
 
-Runs demo 0 of each env through `clfd_bench.sim.rollout` in this process (one core; MuJoCo and
+Runs demo 0 of each env through `clfd_bench.execution.rollout` in this process (one core; MuJoCo and
 mink are single-threaded, torch is not involved) and reports x real time against the targets
 (>= 50x, >= 20x for Pouring), plus the IK and bare-physics cost per 60 Hz step.
 """
@@ -16,8 +16,8 @@ __all__ = ["register"]
 
 
 def _run(args: argparse.Namespace) -> int:
+    from clfd_bench.execution.bench import DEFAULT_ENVS, bench_env, machine_note
     from clfd_bench.progress import progress
-    from clfd_bench.sim.bench import DEFAULT_ENVS, bench_env, machine_note
 
     if args.env == ["all"]:
         from clfd_bench.envs.registration import env_specs

@@ -49,7 +49,8 @@ def format_summary(results: dict[str, Any], fields: dict[str, Any]) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from clfd_bench.evaluation.sim_eval import evaluate_run, read_results
+    from clfd_bench.execution.evaluate import evaluate_run
+    from clfd_bench.execution.saved_run import read_results
 
     try:
         fields = evaluate_run(args.run_dir, rerun_path=args.rerun, force=args.force,

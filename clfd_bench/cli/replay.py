@@ -1,17 +1,18 @@
-"""``clfd-bench replay``: replay dataset demonstrations through environments, print success.
+"""``clfd-bench replay``: replay dataset demonstrations (as they are, or perturbed by families
+that must succeed or must fail) through environments and print the env × family confusion
+table. Exits 1 when a cell disagrees with its family's expectation.
 
 Examples::
 
     clfd-bench replay --env clfd/HelloWorld-h-v0
-    clfd-bench replay --env clfd/LASA-Angle-v0 --demos 0,1 --perturb reverse --json
-    clfd-bench replay --env writing --perturb all        # every writing env, all perturbations
+    clfd-bench replay --env clfd/LASA-Angle-v0 --demos 0,1 --perturb reverse,mirror
+    clfd-bench replay --env robotasks --perturb all --json table.json   # env x family table
     clfd-bench replay --env all                          # every registered env
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
@@ -50,21 +51,35 @@ def _parse_demos(text: str) -> list[int] | None:
                          ) from None
 
 
+def _families(text: str) -> list[str] | None:
+    """--perturb value -> family names (None: every family that applies to each env)."""
+    from clfd_bench.execution.perturb import FAMILIES
+
+    if text == "all":
+        return None
+    names = [x.strip() for x in text.split(",") if x.strip()]
+    bad = [n for n in names if n not in FAMILIES]
+    if bad or not names:
+        raise SystemExit(f"clfd-bench replay: unknown --perturb {', '.join(bad) or text!r}; "
+                         f"valid: all or comma-separated names of {', '.join(FAMILIES)}")
+    return names
+
+
 def _run(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
+    from clfd_bench.execution.replay import (
+        confusion_table,
+        families_for,
+        format_confusion,
+        replay,
+    )
+    from clfd_bench.io import atomic_write_json
     from clfd_bench.progress import progress
-    from clfd_bench.sim.replay import PERTURBATIONS, replay
 
     env_ids = _resolve_envs(args.env)
     demos = _parse_demos(args.demos)
-    perturbs: list[str | None]
-    if args.perturb == "all":
-        perturbs = [None, *PERTURBATIONS]
-    elif args.perturb == "none":
-        perturbs = [None]
-    else:
-        perturbs = [args.perturb]
+    wanted = _families(args.perturb)
     rows: list[dict[str, Any]] = []
     errors: dict[str, str] = {}
     for env_id in progress(env_ids, desc="envs"):
@@ -75,38 +90,30 @@ def _run(args: argparse.Namespace) -> int:
             print(f"{env_id}: cannot make env: {errors[env_id]}", file=sys.stderr)
             continue
         try:
-            for perturb in perturbs:
-                for rec in replay(env_id, demos, perturb, settle_s=args.settle, env=env):
+            applicable = families_for(env.unwrapped)
+            families = applicable if wanted is None else [f for f in wanted if f in applicable]
+            for family in families:
+                for rec in replay(env_id, demos, family, settle_s=args.settle, env=env):
                     rows.append(rec.to_json())
-                    if not args.json:
+                    if args.verbose:
                         status = "success" if rec.success else "FAIL"
-                        extra = {k: v for k, v in rec.to_json()["info"].items()
-                                 if k in ("dtw", "ink_fraction", "goal_distance",
-                                          "failure_reason", "letter_dtw") and v is not None}
-                        print(f"{env_id} demo {rec.demo} [{perturb or 'demo'}]: {status} "
-                              f"{extra} ({rec.sim_s:.1f} s sim in {rec.wall_s:.2f} s)")
+                        reason = rec.info.get("failure_reason")
+                        print(f"{env_id} demo {rec.demo} [{family}, should {rec.expect}]: "
+                              f"{status}{f' ({reason})' if reason else ''} "
+                              f"({rec.sim_s:.1f} s sim in {rec.wall_s:.2f} s)", file=sys.stderr)
         finally:
             env.close()
-    summary = _summary(rows)
+    table = confusion_table(rows)
     if args.json:
-        print(json.dumps({"results": rows, "summary": summary, "errors": errors}, indent=1))
-    else:
-        for key, s in summary.items():
-            want = "succeed" if key.endswith("[demo]") else "fail"
-            print(f"{key}: {s['successes']}/{s['n']} succeeded (should {want})")
-    return 1 if errors else 0
-
-
-def _summary(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    out: dict[str, dict[str, Any]] = {}
-    for r in rows:
-        key = f"{r['env']} [{r['perturb'] or 'demo'}]"
-        s = out.setdefault(key, {"n": 0, "successes": 0})
-        s["n"] += 1
-        s["successes"] += int(r["success"])
-    for s in out.values():
-        s["success_rate"] = s["successes"] / s["n"]
-    return out
+        atomic_write_json(args.json, {"results": rows, "confusion": table, "errors": errors})
+    print(format_confusion(table))
+    if args.json:
+        print(f"wrote {args.json}", file=sys.stderr)
+    disagree = sum(not c["ok"] for cells in table.values() for c in cells.values())
+    if disagree:
+        print(f"{disagree} cell(s) disagree with their family's expectation (marked ✗)",
+              file=sys.stderr)
+    return 1 if errors or disagree else 0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -118,12 +125,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="env id (e.g. clfd/HelloWorld-h-v0), or 'all', 'writing', 'robotasks'; "
                         "repeatable")
     p.add_argument("--demos", default="all", help="'all' (default) or comma-separated indices")
-    p.add_argument("--perturb", default="none",
-                   choices=["none", "reverse", "other-task", "truncate", "all"],
-                   help="replay wrong trajectories (should fail): the time-reversed demo, demo j "
-                        "of the next task of the dataset, or the demo cut at 50%%; 'all' runs "
-                        "the demos and every perturbation")
+    p.add_argument("--perturb", default="demo", metavar="FAMILIES",
+                   help="'all' or comma-separated perturbation families (default 'demo'): "
+                        "must succeed: demo, slower, faster, noise, start-offset; must fail: "
+                        "reverse, other-task, stop-early, shortcut, rush-wait, mirror, drift, "
+                        "teleport, frozen-orientation (poses only); see "
+                        "clfd_bench.execution.perturb")
     p.add_argument("--settle", type=float, default=1.0, metavar="S",
                    help="seconds the scene settles after the trajectory (default 1.0)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--json", metavar="FILE", default=None,
+                   help="also write every record and the confusion table to FILE (JSON)")
+    p.add_argument("-v", "--verbose", action="store_true", help="one line per replayed demo")
     p.set_defaults(func=_run)

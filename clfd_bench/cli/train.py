@@ -60,7 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _sim_hook(out: str, workers: int, quiet: bool):
     """After each task: execute every saved prediction not executed yet (cached in the run),
     and write ``success`` / ``sim_accuracy`` / ``sim_cl_metrics`` into ``results.json``."""
-    from clfd_bench.evaluation.sim_eval import evaluate_run
+    from clfd_bench.execution.evaluate import evaluate_run
 
     def after_task(i: int) -> dict:
         fields = evaluate_run(out, workers=workers)
@@ -110,7 +110,7 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     if sim_hook is not None:
         # run_training rewrites results.json at the end; put the (cached) execution back.
-        from clfd_bench.evaluation.sim_eval import evaluate_run
+        from clfd_bench.execution.evaluate import evaluate_run
 
         fields = evaluate_run(args.out, workers=args.sim_workers)
         results.update(fields)

@@ -13,7 +13,7 @@ grasp point, the rest where demo j needs it) and decides success from the physic
 | pouring | cup (weld) | >= `min_fraction` of the beans inside the container |
 
 Success is decided from the state alone (no history besides the blocks' start positions), so it
-can be evaluated at any step; `clfd_bench.sim.rollout.rollout` evaluates it after the
+can be evaluated at any step; `clfd_bench.execution.rollout.rollout` evaluates it after the
 trajectory and the settling time.
 """
 

@@ -64,7 +64,7 @@ class RoboTaskEnv(PandaEnv):
     holding; < 0.5 open, releasing). Each step is one 60 Hz control period: mink IK (FrameTask
     on `hand`, PostureTask, configuration and velocity limits) moves the joint targets towards
     the pose, the joint position servos follow. `trajectory_to_actions(traj [T, 7]) -> [T, 8]`
-    appends a closed gripper. `settle_actions` (run by `clfd_bench.sim.rollout.rollout` after
+    appends a closed gripper. `settle_actions` (run by `clfd_bench.execution.rollout.rollout` after
     the trajectory) hold the last pose, the gripper closed for 0.25 s (the arm comes to rest)
     and then open; in pouring the gripper stays closed (the cup is never let go).
 

@@ -15,7 +15,7 @@ env's ``reset`` does, and the only start for which the props are consistent with
 the box lid's handle, the plate in its rack). The hand then first moves to the prediction's
 first pose along a straight line (minimum-jerk-like cosine profile, mean speed
 ``approach_speed``, 0.1 m/s by default, about the demos' speed), carrying the prop, and then
-executes the prediction sample by sample (:func:`clfd_bench.sim.rollout.rollout`, which also
+executes the prediction sample by sample (:func:`clfd_bench.execution.rollout.rollout`, which also
 decides success after the settling time). At start Δ = 0 there is no approach, so the
 reference is exactly the harness's execution of the prediction from the demo's start. No
 action is ever a jump: the IK tracker's joint velocity limits would bound it anyway, but a jump
@@ -227,7 +227,7 @@ def execute(env, demo: int, demo_start: np.ndarray, prediction: np.ndarray,
         ``{"success", "failure" (reason or None), "approach_steps", "max_tracking_error_m",
         "outcome" (the env's final task quantities)}``.
     """
-    from clfd_bench.sim.rollout import rollout
+    from clfd_bench.execution.rollout import rollout
 
     if diverged(prediction):
         return {"success": False, "approach_steps": 0, "max_tracking_error_m": None,
@@ -310,7 +310,7 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
     """
     from clfd_bench.data import load_dataset
     from clfd_bench.envs.registration import env_id_for
-    from clfd_bench.evaluation.sim_eval import get_env
+    from clfd_bench.execution.env_pool import get_env
     from clfd_bench.harness.protocol import load_learner
     from clfd_bench.progress import progress
 

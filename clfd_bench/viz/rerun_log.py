@@ -5,7 +5,7 @@ One :class:`RolloutLogger` writes one recording. Every rollout goes under its ow
 
 * ``prediction``, ``demonstration``: the commanded and the demonstrated tool path (static
   lines; the tool is the pen tip for writing, the grasp point between the fingertips for
-  RoboTasks, see :func:`clfd_bench.evaluation.sim_eval.tool_path`);
+  RoboTasks, see :func:`clfd_bench.execution.trace.tool_path`);
 * ``tool_path``: where the tool went (static line) and ``tool``: the tool point over time;
 * ``ink``: the pen-down segments (writing envs);
 * ``hand``: the tracked hand frame's pose over time (with axes);
@@ -94,12 +94,12 @@ class RolloutLogger:
         Args:
             entity: entity path prefix, e.g. ``"after_task_3/e/demo_0"``.
             base: the unwrapped env it ran in (maps data units to the world).
-            result: its :class:`~clfd_bench.evaluation.sim_eval.ExecResult`, executed with
+            result: its :class:`~clfd_bench.execution.execute.ExecResult`, executed with
                 ``trace=True``.
             prediction: the executed trajectory in data units (what ``execute`` got).
             demonstration: the demonstration of the same demo, data units (optional).
         """
-        from clfd_bench.evaluation.sim_eval import tool_path
+        from clfd_bench.execution.trace import tool_path
 
         rr, rec = self._rr, self.rec
         trace = result.trace

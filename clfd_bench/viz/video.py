@@ -196,9 +196,9 @@ def _robot_points(base: Any) -> np.ndarray:
 
 def _object_points(base: Any) -> np.ndarray:
     """World positions [K, 3] of the movable bodies that are not the robot (props)."""
-    from clfd_bench.evaluation.sim_eval import _object_bodies
+    from clfd_bench.execution.trace import object_bodies
 
-    ids = list(_object_bodies(base.model).values())
+    ids = list(object_bodies(base.model).values())
     return np.array([base.data.xpos[i] for i in ids]).reshape(-1, 3)
 
 
@@ -359,8 +359,8 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
     the paths drawn in, to every sink (e.g. ``VideoWriter.append``).
 
     Args:
-        env: a clfd-bench env (no render mode needed; e.g. ``sim_eval.get_env(id)``).
-        trajectory: what ``sim_eval.execute`` takes (data units).
+        env: a clfd-bench env (no render mode needed; e.g. ``env_pool.get_env(id)``).
+        trajectory: what ``clfd_bench.execution.execute.execute`` takes (data units).
         demo: the demo to reset to.
         sinks: callables taking one frame ``[H, W, 3]`` uint8.
         demonstration: the demonstration in the same form, drawn in green (optional).
@@ -373,7 +373,8 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
         ``(ExecResult, frames written per sink)``; the frame count is
         ``style.frames_for(result.steps)``.
     """
-    from clfd_bench.evaluation.sim_eval import FrameHook, execute, tool_path
+    from clfd_bench.execution.execute import execute
+    from clfd_bench.execution.trace import FrameHook, tool_path
 
     style = style or VideoStyle()
     base = env.unwrapped
@@ -466,7 +467,8 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
         ``{run}_all_tasks_demo{d}.mp4`` and ``{run}_text_demo{d}.mp4`` when made.
     """
     from clfd_bench.envs.registration import env_id_for
-    from clfd_bench.evaluation.sim_eval import get_env, load_run, load_run_predictions
+    from clfd_bench.execution.env_pool import get_env
+    from clfd_bench.execution.saved_run import load_run, load_run_predictions
     from clfd_bench.progress import progress
 
     style = style or VideoStyle()
@@ -540,7 +542,7 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
     Returns:
         The mp4's path, or None when the run learned none of the text's letters.
     """
-    from clfd_bench.evaluation.sim_eval import load_run, load_run_predictions
+    from clfd_bench.execution.saved_run import load_run, load_run_predictions
 
     run = load_run(run_dir)
     if run.dataset != "helloworld":
@@ -557,7 +559,7 @@ def _render_text(run: str, out_dir: Path, names: Sequence[str], preds: dict[int,
                  demos: dict[int, np.ndarray], demo: int, style: VideoStyle,
                  logger: Any) -> Path | None:
     """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v0``)."""
-    from clfd_bench.evaluation.sim_eval import get_env
+    from clfd_bench.execution.env_pool import get_env
 
     text = text_for_letters(names)
     if not text:

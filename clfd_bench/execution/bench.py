@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from clfd_bench.envs.base import PandaEnv
-from clfd_bench.sim.rollout import DEFAULT_SETTLE_S, rollout
+from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
 #: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
 DEFAULT_ENVS = (

@@ -1,0 +1,83 @@
+"""What simulator produced an execution result: a fingerprint of its code and assets, and the
+provenance block (env ids and versions, library versions) results files record."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.metadata
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["sim_fingerprint", "sim_provenance"]
+
+
+def _version(dist: str) -> str | None:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def _sim_files() -> Iterator[Path]:
+    """Files that define the simulator: its code, the task scenes and specs, robot assets."""
+    from clfd_bench.resources import resource_root
+
+    pkg = Path(__file__).resolve().parent.parent
+    for folder in (pkg / "sim", pkg / "envs"):
+        yield from sorted(folder.glob("*.py"))
+    yield pkg / "execution" / "rollout.py"  # what runs after the trajectory decides success too
+    for name in ("tasks", "assets"):
+        root = resource_root(name)
+        yield from sorted(p for p in root.rglob("*") if p.is_file() and p.suffix != ".md")
+
+
+@functools.lru_cache(maxsize=1)
+def sim_fingerprint() -> str:
+    """sha256 (hex, first 16 digits) of the simulator: the contents of ``clfd_bench/sim``,
+    ``clfd_bench/envs``, ``clfd_bench/execution/rollout.py``, ``tasks/`` and ``assets/`` and
+    the mujoco, mink, gymnasium versions. Execution results are reused only under the same
+    fingerprint."""
+    from clfd_bench.resources import resource_root
+
+    roots = [Path(__file__).resolve().parent.parent, resource_root("tasks").parent,
+             resource_root("assets").parent]
+    digest = hashlib.sha256()
+    for dist in ("mujoco", "mink", "gymnasium"):
+        digest.update(f"{dist}={_version(dist)}\n".encode())
+    for path in _sim_files():
+        rel = next((str(path.relative_to(r)) for r in roots if path.is_relative_to(r)), path.name)
+        digest.update(rel.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
+
+
+def sim_provenance(dataset: str, task_names: Sequence[str]) -> dict[str, Any]:
+    """The ``sim`` block: env id and version of each task, library versions, fingerprint.
+
+    Tasks without an env get ``None`` as id.
+    """
+    import gymnasium as gym
+
+    from clfd_bench import __version__
+    from clfd_bench.envs.registration import env_id_for
+
+    env_ids: dict[str, str | None] = {}
+    for name in task_names:
+        try:
+            env_ids[name] = env_id_for(dataset, name)
+        except KeyError:
+            env_ids[name] = None
+    versions = {}
+    for env_id in sorted({e for e in env_ids.values() if e}):
+        spec = gym.spec(env_id)
+        versions[env_id] = spec.version
+    return {
+        "env_ids": env_ids,
+        "env_versions": versions,
+        "clfd_bench": __version__,
+        "mujoco": _version("mujoco"),
+        "mink": _version("mink"),
+        "gymnasium": _version("gymnasium"),
+        "fingerprint": sim_fingerprint(),
+    }

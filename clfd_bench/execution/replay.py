@@ -1,0 +1,185 @@
+"""Replay dataset demonstrations, as they are or perturbed, and tabulate what the envs decide.
+
+The perturbation families (`clfd_bench.execution.perturb`) say which variants must succeed
+(the demo, slower, faster, small smooth noise, small start offsets) and which must fail (wrong
+shape, another task, shortcuts, drift, stopping early, ...). `replay` runs one family on the
+demos of one env; `confusion_table` summarises many records into env × family counts and
+flags every cell that disagrees with its family's expectation (a must-succeed family below
+100 %, a must-fail family succeeding in more than `MAX_FALSE_SUCCESS` of the demos).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from clfd_bench.envs.base import PandaEnv, load_task
+from clfd_bench.execution.perturb import FAMILIES, PerturbContext, family_names, perturb
+from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
+from clfd_bench.io import json_safe
+
+__all__ = ["MAX_FALSE_SUCCESS", "ReplayRecord", "confusion_table", "families_for",
+           "format_confusion", "replay", "replay_trajectory"]
+
+#: A must-fail family may succeed on at most this fraction of an env's demos.
+MAX_FALSE_SUCCESS = 0.05
+
+
+@dataclasses.dataclass
+class ReplayRecord:
+    """One replayed demo: `success`, the env's decisive info entries, wall and simulated time."""
+
+    env_id: str
+    demo: int
+    family: str
+    success: bool
+    info: dict[str, Any]
+    wall_s: float
+    sim_s: float
+    max_tracking_error_m: float
+
+    @property
+    def expect(self) -> str:
+        """"succeed" or "fail": what the family's trajectories should do."""
+        return FAMILIES[self.family].expect
+
+    def to_json(self) -> dict[str, Any]:
+        return {"env": self.env_id, "demo": self.demo, "family": self.family,
+                "expect": self.expect, "success": self.success, "info": json_safe(self.info),
+                "wall_s": self.wall_s, "sim_s": self.sim_s,
+                "max_tracking_error_m": json_safe(self.max_tracking_error_m)}
+
+
+def _next_task_name(dataset: str, task_name: str) -> str:
+    from clfd_bench.data import load_dataset
+
+    names = list(load_dataset(dataset).task_names)
+    return names[(names.index(task_name) + 1) % len(names)]
+
+
+def _units_per_m(env: PandaEnv) -> float:
+    """Data units per metre on the robot: poses 1; a pen shape 1 / sim_scale; the text env
+    1 / its letter scale."""
+    if hasattr(env, "sim_scale"):
+        return 1.0 / float(env.sim_scale)
+    if hasattr(env, "letters"):
+        return 1.0 / float(env.scale)
+    return 1.0
+
+
+def families_for(env: PandaEnv) -> list[str]:
+    """The families that apply to an env (pose-only ones for pose envs only)."""
+    return family_names(poses=env.action_space.shape[0] >= 7)
+
+
+def replay_trajectory(env: PandaEnv, demo: int, family: str = "demo"
+                      ) -> np.ndarray | list[np.ndarray]:
+    """The trajectory `clfd-bench replay` runs for demo `demo` of `env` (data units), perturbed
+    by `family` (for the text env: one trajectory per letter, each perturbed)."""
+    if family not in FAMILIES:
+        raise ValueError(f"unknown perturbation family {family!r}; valid: {list(FAMILIES)}")
+    traj = env.demo_trajectory(demo)
+    units = _units_per_m(env)
+    if isinstance(traj, list):  # HelloWorld text: one trajectory per letter
+        out = []
+        for c, letter in zip(env.letters, traj, strict=True):
+            other = None
+            if family == "other-task":
+                other = load_task(env.dataset, _next_task_name(env.dataset, c)).demos[demo]
+            out.append(perturb(family, letter, PerturbContext(demo, units, other)))
+        return out
+    other = None
+    if family == "other-task":
+        other = load_task(env.dataset, _next_task_name(env.dataset, env.task_name)).demos[demo]
+    return perturb(family, traj, PerturbContext(demo, units, other))
+
+
+def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo",
+           settle_s: float = DEFAULT_SETTLE_S, env: gym.Env | None = None,
+           **env_kwargs: Any) -> list[ReplayRecord]:
+    """Replays demos of `env_id` (all when `demos` is None), perturbed by `family`.
+
+    Returns:
+        One `ReplayRecord` per demo.
+    """
+    import clfd_bench.envs  # noqa: F401 - registers the ids
+
+    own = env is None
+    env = env if env is not None else gym.make(env_id, **env_kwargs)
+    try:
+        base = env.unwrapped
+        if not isinstance(base, PandaEnv):
+            raise TypeError(f"{env_id} is not a clfd-bench env")
+        demo_ids = list(range(base.num_demos)) if demos is None else list(demos)
+        bad = [j for j in demo_ids if not 0 <= j < base.num_demos]
+        if bad:
+            raise ValueError(f"{env_id} has demos 0..{base.num_demos - 1}; got {bad}")
+        records = []
+        for j in demo_ids:
+            traj = replay_trajectory(base, j, family)
+            t0 = time.perf_counter()
+            result = rollout(env, traj, demo=j, settle_s=settle_s)
+            wall = time.perf_counter() - t0
+            err = result.tracking_error_pos
+            records.append(ReplayRecord(
+                env_id=env_id, demo=j, family=family, success=result.success,
+                info={k: v for k, v in result.info.items()
+                      if k not in ("tracking_error", "ik_error")},
+                wall_s=wall, sim_s=result.steps * base.control_dt,
+                max_tracking_error_m=float(np.nanmax(err)) if np.isfinite(err).any()
+                else float("nan")))
+        return records
+    finally:
+        if own:
+            env.close()
+
+
+def confusion_table(records: Iterable[ReplayRecord | dict[str, Any]]
+                    ) -> dict[str, dict[str, dict[str, Any]]]:
+    """{env: {family: {"n", "successes", "expect", "ok", "failure_kinds"}}} from replay
+    records (objects or their `to_json()` dicts). `ok` is False where a must-succeed family
+    failed on any demo or a must-fail family succeeded on more than `MAX_FALSE_SUCCESS`."""
+    table: dict[str, dict[str, dict[str, Any]]] = {}
+    for r in records:
+        r = r.to_json() if isinstance(r, ReplayRecord) else r
+        cell = table.setdefault(r["env"], {}).setdefault(
+            r["family"], {"n": 0, "successes": 0, "expect": FAMILIES[r["family"]].expect,
+                          "failure_kinds": {}})
+        cell["n"] += 1
+        cell["successes"] += int(r["success"])
+        kind = (r["info"].get("failure") or {}).get("kind") if not r["success"] else None
+        if kind:
+            cell["failure_kinds"][kind] = cell["failure_kinds"].get(kind, 0) + 1
+    for cells in table.values():
+        for cell in cells.values():
+            if cell["expect"] == "succeed":
+                cell["ok"] = cell["successes"] == cell["n"]
+            else:
+                cell["ok"] = cell["successes"] <= MAX_FALSE_SUCCESS * cell["n"]
+    return table
+
+
+def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
+    """The confusion table as markdown: one row per env, one column per family, cells
+    "successes/n", a `✗` where the cell disagrees with the family's expectation."""
+    families = [f for f in FAMILIES if any(f in cells for cells in table.values())]
+    head = ["env"] + [f"{f} ({'S' if FAMILIES[f].expect == 'succeed' else 'F'})"
+                      for f in families]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for env_id, cells in table.items():
+        row = [env_id.removeprefix("clfd/")]
+        for f in families:
+            c = cells.get(f)
+            row.append("–" if c is None else
+                       f"{c['successes']}/{c['n']}" + ("" if c["ok"] else " ✗"))
+        lines.append("| " + " | ".join(row) + " |")
+    lines.append("")
+    lines.append("Cells: demos that succeeded / demos run. (S) must succeed on every demo; (F) "
+                 f"must fail on ≥ {100 * (1 - MAX_FALSE_SUCCESS):.0f} % of demos; ✗ marks a "
+                 "cell that does not.")
+    return "\n".join(lines)
