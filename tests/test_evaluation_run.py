@@ -61,6 +61,18 @@ def test_evaluate_run_writes_success_and_keeps_everything_else(tiny_run, tmp_pat
     assert sim["rollouts_executed"] == 2 * n and sim["rollouts_cached"] == n
     assert success[1][0] == success[0][0]
     assert fields["success"] == success
+    # Every failed execution has a kind, every success none; the counts tally them.
+    kinds = sim["failure_kind"]
+    tally = {}
+    for i in range(m):
+        for j in range(i + 1):
+            for ok, kind, reason in zip(success[i][j], kinds[i][j], sim["failure_reason"][i][j],
+                                        strict=True):
+                assert (kind is None) == ok and (reason is None) == ok
+                if kind:
+                    tally[kind] = tally.get(kind, 0) + 1
+    assert {k: n for k, n in sim["failure_counts"].items() if n} == tally
+    assert list(sim["failure_counts"])[:4] == ["reflex", "tracking", "unreachable", "collision"]
 
     counts = rrd_entity_paths(rrd)
     assert "/after_task_1/e/demo_7/tool" in counts
@@ -92,6 +104,7 @@ def test_evaluate_cli(tiny_run, capsys):
     assert args.func(args) == 0
     out = capsys.readouterr().out
     assert "execution success R[i][j]" in out and "ACC" in out
+    assert "execution failures: " in out
 
     args = parser.parse_args(["evaluate", str(tiny_run / "missing")])
     assert args.func(args) == 2

@@ -45,6 +45,25 @@ def format_summary(results: dict[str, Any], fields: dict[str, Any]) -> str:
     lines.append(f"{'':>10} {'execution':>10} {primary + ' (traj.)':>16}")
     for key in ("ACC", "REM", "BWT"):
         lines.append(f"{key:>10} {_fmt(simm.get(key)):>10} {_fmt(traj.get(key)):>16}")
+    lines.append(format_failures(fields.get("sim") or {}))
+    return "\n".join(lines)
+
+
+def format_failures(sim: dict[str, Any]) -> str:
+    """One line: how many executions failed, by kind, and the first reason of each kind."""
+    counts = {k: n for k, n in (sim.get("failure_counts") or {}).items() if n}
+    if not counts:
+        return "execution failures: none"
+    first: dict[str, str] = {}
+    for row_r, row_k in zip(sim.get("failure_reason") or [], sim.get("failure_kind") or [],
+                            strict=False):
+        for cell_r, cell_k in zip(row_r, row_k, strict=False):
+            for reason, kind in zip(cell_r or [], cell_k or [], strict=False):
+                if kind and kind not in first and reason:
+                    first[kind] = reason
+    parts = [f"{kind} {n}" for kind, n in counts.items()]
+    lines = [f"execution failures: {', '.join(parts)}"]
+    lines += [f"  e.g. {kind}: {first[kind]}" for kind in counts if kind in first]
     return "\n".join(lines)
 
 
@@ -59,7 +78,9 @@ def _run(args: argparse.Namespace) -> int:
         print(f"clfd-bench evaluate: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps({k: fields[k] for k in ("success", "sim_accuracy", "sim_cl_metrics")}))
+        out = {k: fields[k] for k in ("success", "sim_accuracy", "sim_cl_metrics")}
+        out["failure_counts"] = fields["sim"]["failure_counts"]
+        print(json.dumps(out))
     else:
         print(format_summary(read_results(args.run_dir), fields))
         if args.rerun:
@@ -85,5 +106,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="processes executing rollouts in parallel (default 1; --rerun runs in "
                         "this process)")
     p.add_argument("--json", action="store_true",
-                   help="print success, sim_accuracy and sim_cl_metrics as JSON")
+                   help="print success, sim_accuracy, sim_cl_metrics and failure_counts as "
+                        "JSON")
     p.set_defaults(func=_run)

@@ -41,6 +41,8 @@ class MethodRow:
     runs_failed: int = 0
     errors: list[str] = field(default_factory=list)
     values: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    #: execution failures by kind, summed over the runs that report them (None: no run does).
+    failures: dict[str, int] | None = None
 
     def median(self, key: str) -> float:
         vals = self.values.get(key, [])
@@ -79,7 +81,8 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
 
     Keys in ``values``: the trajectory CL criteria and CL_score / CL_stability (with FS
     across the compared methods), ``BWT``, ``exec_ACC`` / ``exec_REM`` / ``exec_BWT`` (from
-    simulation, when the run executed), ``train_time_s`` (total), ``final_params``.
+    simulation, when the run executed), ``train_time_s`` (total), ``final_params``; and
+    ``failures``, the execution failures by kind summed over the runs.
     """
     rows = {m: MethodRow(m) for m in methods}
     finished = [r for r in records if r.results is not None and r.status == "done"]
@@ -112,6 +115,11 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
             value = (res.get("sim_cl_metrics") or {}).get(key)
             if value is not None:
                 row.values[f"exec_{key}"].append(float(value))
+        counts = (res.get("sim") or {}).get("failure_counts")
+        if counts:
+            row.failures = row.failures or {}
+            for kind, n in counts.items():
+                row.failures[kind] = row.failures.get(kind, 0) + int(n)
         row.values["train_time_s"].append(float(sum(res.get("train_time_s", []))))
         row.values["final_params"].append(_final_size(res))
     return [rows[m] for m in methods]

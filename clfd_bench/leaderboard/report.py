@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
 
@@ -81,6 +82,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any]) -> str:
         runs = f"{row.runs_ok}" + (f" (+{row.runs_failed} failed)" if row.runs_failed else "")
         cells = [str(idx), row.method.upper(), runs, *[_cell(row, k) for k, _ in COLUMNS]]
         lines.append("| " + " | ".join(cells) + " |")
+    lines += _failure_table(rows)
     failures = [(row.method, e) for row in rows for e in row.errors]
     if failures:
         lines += ["", "## Failed runs", ""]
@@ -89,6 +91,25 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any]) -> str:
     if figs:
         lines += ["", "## Figures", ""] + [f"![{Path(f).stem}]({Path(f).name})" for f in figs]
     return "\n".join(lines) + "\n"
+
+
+def _failure_table(rows: list[MethodRow]) -> list[str]:
+    """Markdown lines: executions that failed, by kind, per method (nothing without sim)."""
+    kinds = [k for k in FAILURE_KINDS if any((r.failures or {}).get(k) for r in rows)]
+    if not any(r.failures is not None for r in rows):
+        return []
+    lines = ["", "## Executions that failed, by kind", "",
+             "Counts over every executed prediction of the method's runs: reflex, tracking, "
+             "unreachable and collision are commands the real Panda would refuse or could not "
+             "follow; task: executed to the end, but the task was not achieved.", ""]
+    if not kinds:
+        return lines + ["No execution failed."]
+    lines += ["| method | " + " | ".join(kinds) + " |", "|" + "---|" * (len(kinds) + 1)]
+    for row in rows:
+        f = row.failures
+        cells = ["-" if f is None else str(f.get(k, 0)) for k in kinds]
+        lines.append(f"| {row.method.upper()} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _csv(rows: list[MethodRow]) -> str:
@@ -128,6 +149,7 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
                 "runs_ok": row.runs_ok,
                 "runs_failed": row.runs_failed,
                 "errors": row.errors,
+                "exec_failures": row.failures,
                 "metrics": {
                     key: {
                         "median": _json_value(row.median(key)),
