@@ -37,7 +37,10 @@ def _read(run_dir):
 def test_evaluate_run_writes_success_and_keeps_everything_else(tiny_run, tmp_path):
     before = _read(tiny_run)
     rrd = tmp_path / "eval.rrd"
-    fields = evaluate_run(tiny_run, rerun_path=rrd)
+    from clfd_bench.viz.rerun_log import RolloutLogger
+
+    with RolloutLogger(rrd, recording_name="test") as logger:
+        fields = evaluate_run(tiny_run, observer=logger)
     after = _read(tiny_run)
 
     # Everything training wrote is unchanged; only the execution keys were added.

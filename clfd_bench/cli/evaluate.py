@@ -72,8 +72,13 @@ def _run(args: argparse.Namespace) -> int:
     from clfd_bench.execution.saved_run import read_results
 
     try:
-        fields = evaluate_run(args.run_dir, rerun_path=args.rerun, force=args.force,
-                              workers=args.workers)
+        if args.rerun:
+            from clfd_bench.viz.rerun_log import RolloutLogger
+
+            with RolloutLogger(args.rerun, recording_name=f"evaluate {args.run_dir}") as logger:
+                fields = evaluate_run(args.run_dir, observer=logger, force=args.force)
+        else:
+            fields = evaluate_run(args.run_dir, force=args.force, workers=args.workers)
     except (FileNotFoundError, ValueError, KeyError) as exc:
         print(f"clfd-bench evaluate: error: {exc}", file=sys.stderr)
         return 2

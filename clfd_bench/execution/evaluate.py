@@ -18,7 +18,7 @@ import datetime
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -43,7 +43,7 @@ from clfd_bench.execution.scoring import failure_counts, sim_fields
 from clfd_bench.io import atomic_write_json
 from clfd_bench.progress import progress
 
-__all__ = ["evaluate_run"]
+__all__ = ["RolloutObserver", "evaluate_run"]
 
 
 def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, dict, float]:
@@ -79,7 +79,15 @@ def _env_ids(dataset: str, task_names: Sequence[str]) -> list[str | None]:
 
 
 
-def evaluate_run(run_dir: str | Path, rerun_path: str | Path | None = None, *,
+class RolloutObserver(Protocol):
+    """Receives every executed evaluation point with its trace (e.g.
+    ``clfd_bench.viz.rerun_log.RolloutLogger``)."""
+
+    def log_rollout(self, entity: str, base: Any, result: ExecResult, prediction: np.ndarray,
+                    demonstration: np.ndarray | None = None) -> None: ...
+
+
+def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *,
                  force: bool = False, settle_s: float | None = None,
                  workers: int = 1) -> dict[str, Any]:
     """Scores a saved run by execution, without training.
@@ -101,8 +109,9 @@ def evaluate_run(run_dir: str | Path, rerun_path: str | Path | None = None, *,
 
     Args:
         run_dir: a directory written by ``clfd-bench train``.
-        rerun_path: also log every rollout to this ``.rrd`` file (rerun-sdk); every point is
-            then executed in this process (cached ones too, to have their paths).
+        observer: also hand every rollout, with its trace, to this observer (e.g. a rerun
+            ``RolloutLogger``); every point is then executed in this process (cached ones
+            too, to have their paths).
         force: ignore the execution cache.
         settle_s: seconds of settling after each trajectory (default: the rollout's).
         workers: processes executing rollouts in parallel (1: in this process).
@@ -139,7 +148,7 @@ def evaluate_run(run_dir: str | Path, rerun_path: str | Path | None = None, *,
                 points.append((i, j, d, key, traj))
                 if not np.isfinite(traj).all():
                     cache[key] = nonfinite_summary(d)
-                elif (key not in cache or rerun_path is not None) and key not in jobs:
+                elif (key not in cache or observer is not None) and key not in jobs:
                     jobs[key] = (key, env_id, d, traj, settle_s)
 
     # One task's env after the other: each env is built once (the env cache is bounded).
@@ -159,8 +168,8 @@ def evaluate_run(run_dir: str | Path, rerun_path: str | Path | None = None, *,
 
     bar = progress(total=len(jobs), desc=f"sim {run_dir.name}", unit="rollout")
     try:
-        if rerun_path is not None:
-            _execute_logged(run, points, jobs, env_ids, rerun_path, done, bar)
+        if observer is not None:
+            _execute_observed(run, points, jobs, env_ids, observer, done, bar)
         elif workers == 1 or len(jobs) <= 1:
             for job in jobs.values():
                 done(*_run_job(job))
@@ -219,23 +228,21 @@ def evaluate_run(run_dir: str | Path, rerun_path: str | Path | None = None, *,
     return fields
 
 
-def _execute_logged(run: SavedRun, points, jobs, env_ids, rerun_path, done, bar) -> None:
-    """Executes ``jobs`` in this process with traces and logs every point to a rerun file."""
-    from clfd_bench.viz.rerun_log import RolloutLogger
-
+def _execute_observed(run: SavedRun, points, jobs, env_ids, observer: RolloutObserver, done,
+                      bar) -> None:
+    """Executes ``jobs`` in this process with traces and hands every point to ``observer``."""
     demos = run.demos()
     executed: dict[str, tuple[ExecResult, Any]] = {}
-    with RolloutLogger(rerun_path, recording_name=f"evaluate {run.path.name}") as logger:
-        # Task by task, so each env is built once (the env cache is bounded).
-        for i, j, d, key, traj in sorted(points, key=lambda p: (p[1], p[0], p[2])):
-            if key not in jobs:  # not executable (NaN/inf): nothing to show
-                continue
-            if key not in executed:
-                env = get_env(env_ids[j])
-                res = execute(env, traj, d, trace=True, settle_s=jobs[key][4])
-                executed[key] = (res, env.unwrapped)
-                done(key, res.summary(), res.wall_s)
-                bar.update(1)
-            res, base = executed[key]
-            logger.log_rollout(f"after_task_{i}/{run.task_names[j]}/demo_{d}", base, res,
-                               prediction=traj, demonstration=demos[j][d])
+    # Task by task, so each env is built once (the env cache is bounded).
+    for i, j, d, key, traj in sorted(points, key=lambda p: (p[1], p[0], p[2])):
+        if key not in jobs:  # not executable (NaN/inf): nothing to show
+            continue
+        if key not in executed:
+            env = get_env(env_ids[j])
+            res = execute(env, traj, d, trace=True, settle_s=jobs[key][4])
+            executed[key] = (res, env.unwrapped)
+            done(key, res.summary(), res.wall_s)
+            bar.update(1)
+        res, base = executed[key]
+        observer.log_rollout(f"after_task_{i}/{run.task_names[j]}/demo_{d}", base, res,
+                             prediction=traj, demonstration=demos[j][d])
