@@ -24,9 +24,9 @@ from typing import ClassVar
 import torch
 from torch import Tensor, nn
 
-from clfd_bench.harness.config import PartConfig
 from clfd_bench.learning.batches import BatchSampler, BatchSpec
 from clfd_bench.learning.node import NodeSpec, VectorField
+from clfd_bench.learning.part_config import PartConfig
 
 __all__ = ["Method", "StepContext", "TaskData"]
 
