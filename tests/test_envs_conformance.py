@@ -1,5 +1,6 @@
 """Conformance of every registered clfd-bench env: Gymnasium's checker, same-seed determinism,
-pickling. One loop over the registry (an id whose entry point is missing fails here)."""
+pickling (mid-episode, the limit monitor's state included). One loop over the registry (an id
+whose entry point is missing fails here)."""
 
 from __future__ import annotations
 
@@ -35,7 +36,8 @@ def _rollout(env: gym.Env, seed: int, steps: int) -> list[dict]:
     for _ in range(steps):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
         out.append({**obs, "reward": reward, "terminated": terminated, "truncated": truncated,
-                    "tracking_error": np.array(info["tracking_error"])})
+                    "tracking_error": np.array(info["tracking_error"]),
+                    "failure_reason": np.array(str(info["failure_reason"]))})
     return out
 
 
@@ -70,6 +72,25 @@ def test_env_conformance(env_id):
             o2, r2, *_ = clone.step(a)
             _assert_same([o1], [o2])
             assert r1 == r2
+        clone.close()
+        # Pickling in an episode that runs within the limits (demo 0's first actions): the
+        # monitor's state comes along, and a jump refused by the original is refused alike.
+        actions = env.trajectory_to_actions(env.demo_trajectory(0))
+        env.reset(seed=5, options={"demo": 0})
+        for a in actions[:4]:
+            _, _, terminated, _, info = env.step(a)
+            assert not terminated, info["failure_reason"]
+        clone = pickle.loads(pickle.dumps(env))
+        state, cstate = env.motion_monitor.state(), clone.motion_monitor.state()
+        assert state.keys() == cstate.keys()
+        for k in state:
+            np.testing.assert_array_equal(state[k], cstate[k], err_msg=k)
+        for a in [actions[4], env.action_space.high]:
+            o1, r1, t1, _, i1 = env.step(a)
+            o2, r2, t2, _, i2 = clone.step(a)
+            _assert_same([o1], [o2])
+            assert (r1, t1, i1["failure"]) == (r2, t2, i2["failure"])
+        assert t1 and i1["failure"]["step"] == 5
         clone.close()
     finally:
         env.close()

@@ -60,20 +60,33 @@ def test_writing_env_nan_action_raises():
 def test_demo_is_tracked_through_physics(pose_env):
     demo = pose_env.demo_trajectory(0)
     result = rollout(pose_env, demo, demo=0, settle_s=0.2)
-    assert result.info["failure_reason"] is None
+    assert result.info["failure_reason"] is None and result.info["failure"] is None
     assert np.nanmax(result.tracking_error_pos) < 2e-3  # servo + IK, whole demo
     assert np.nanmean(result.tracking_error_pos) < 3e-4
     np.testing.assert_allclose(result.ee_path[-1], demo[-1, :3], atol=1e-3)
 
 
-def test_unreachable_action_reports_error_without_crash(pose_env):
+def test_unreachable_action_fails_as_unreachable(pose_env):
     pose_env.reset(seed=0, options={"demo": 0})
+    obs, reward, terminated, truncated, info = pose_env.step(
+        np.array([0.95, 0.0, 1.2, 1.0, 0.0, 0.0, 0.0, 1.0]))
+    assert terminated and not truncated and reward == 0.0
+    assert info["failure"]["kind"] == "unreachable" and info["failure"]["step"] == 0
+    assert info["failure_reason"] == ("unreachable: target 1.286 m from the shoulder > 0.855 m "
+                                      "at step 0")
+    assert np.all(np.isfinite(obs["qpos"]))
+
+
+def test_unreachable_action_without_limits_reports_error_without_crash(pose_env):
+    env = _PoseEnv(limits=None)
+    env.reset(seed=0, options={"demo": 0})
     for _ in range(30):
-        obs, _, terminated, _, info = pose_env.step(
+        obs, _, terminated, _, info = env.step(
             np.array([0.95, 0.0, 1.2, 1.0, 0.0, 0.0, 0.0, 1.0]))
-    assert not terminated and info["failure_reason"] is None
+    assert not terminated and info["failure_reason"] is None and info["failure"] is None
     assert info["tracking_error"][0] > 0.2
     assert np.all(np.isfinite(obs["qpos"]))
+    env.close()
 
 
 def test_physics_blowup_ends_episode_as_failure(pose_env, tmp_path, monkeypatch):
@@ -84,7 +97,8 @@ def test_physics_blowup_ends_episode_as_failure(pose_env, tmp_path, monkeypatch)
         pose_env.demo_trajectory(0)[:1])[0])
     assert terminated and not truncated and reward == 0.0
     assert not info["is_success"]
-    assert "physics blow-up" in info["failure_reason"]
+    assert "physics blow-up at step 0" in info["failure_reason"]
+    assert info["failure"]["kind"] == "blowup" and info["failure"]["step"] == 0
 
 
 def test_reset_options_are_validated(pose_env):
@@ -101,3 +115,12 @@ def test_render_rgb_array():
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5  # not a blank image
     env.close()
+
+
+def test_env_ik_posture_gain(pose_env):
+    from clfd_bench.envs.base import IK_POSTURE_GAIN
+    from clfd_bench.sim.ik import PoseTracker
+
+    assert pose_env.tracker.posture_task.gain == IK_POSTURE_GAIN == 0.1
+    with pytest.raises(ValueError, match=r"posture_gain must be in \(0, 1\], got 0"):
+        PoseTracker(robot_model(), posture_gain=0.0)

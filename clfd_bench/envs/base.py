@@ -3,17 +3,37 @@
 One class runs the loop every task shares; tasks (RoboTasks scenes, writing) are subclasses that
 fill in hooks. Per `step`:
 
-1. the action is checked (NaN/inf raise a ValueError naming the entries) and mapped to a target
-   pose of the tracked frame (`_action_to_target`);
-2. mink IK (`clfd_bench.sim.ik.PoseTracker`, on the robot-only model) moves its joint solution
-   towards the target: one control step at the data rate (60 Hz);
-3. the Menagerie joint position servos follow the IK solution through `n_substeps` physics steps
+1. the action is checked (NaN/inf raise a ValueError naming the entries: bad input is an
+   error, not a failure) and mapped to a target pose of the tracked frame (`_action_to_target`);
+2. mink IK (`clfd_bench.sim.ik.PoseTracker`, on the robot-only model; posture task gain
+   `IK_POSTURE_GAIN`) moves its joint solution towards the target: one control step at the data
+   rate (60 Hz);
+3. the command (target pose, IK joint reference) is checked as the real Panda's controller
+   would (`clfd_bench.sim.limits.MotionMonitor`): a target beyond the reach or below the floor
+   is "unreachable"; a joint reference outside the joint ranges, or a velocity, acceleration or
+   jerk of the commanded pose or joint reference over libfranka's limits (finite differences at
+   60 Hz from the robot at rest at its reset pose, after the input filter that
+   `clfd_bench.sim.limits` documents) is a "reflex". A refused command is not executed;
+4. the Menagerie joint position servos follow the IK solution through `n_substeps` physics steps
    (~2 ms each), the reference interpolated linearly within the control period with velocity
    feed-forward (the command leads by kv/kp × the reference velocity, which removes the servo's
    steady lag);
-4. task hooks run (`_after_step`), a physics blow-up (MuJoCo bad qpos/qvel/qacc warnings or
-   non-finite state) ends the episode as a failure with `info["failure_reason"]`;
-5. the observation, sparse reward (1.0 when `_is_success`) and info are returned.
+5. a physics blow-up (MuJoCo bad qpos/qvel/qacc warnings or non-finite state) is a "blowup";
+   then a robot link, hand or finger pushing a non-robot geom harder than the collision bound
+   (`CollisionMonitor`; the pen and a held prop touch the scene by design and do not count) is
+   a "collision"; then a hand pose error to the command over the tracking bound is "tracking";
+6. task hooks run (`_after_step`); the observation, sparse reward (1.0 when `_is_success`) and
+   info are returned.
+
+**Failures.** Any of the failures of steps 3 and 5 ends the episode: `terminated=True`, reward
+0, `info["failure_reason"]` a sentence naming the limit and the step (e.g. ``reflex: cartesian
+velocity 3.2 m/s > 1.7 m/s at step 0``, ``collision: link6 hit shelf_board with 85 N > 20 N at
+step 412``) and `info["failure"]` = {kind: "reflex" | "tracking" | "unreachable" | "collision" |
+"blowup", limit, value, bound, unit, step} (steps count from 0). The robot stops as the real
+one does: from then on it holds the joint configuration it had when the failure was detected,
+whatever is commanded, and every further step returns `terminated=True` again. The limits are
+`clfd_bench.sim.limits.panda_limits()` (constructor argument `limits`: "panda" default, a
+`MotionLimits` instance, or None to switch every check but the blow-up off, for debugging).
 
 Hooks for subclasses (all optional except those marked *):
 
@@ -58,10 +78,19 @@ import numpy as np
 from gymnasium import spaces
 
 from clfd_bench.sim.ik import PoseTracker, quat_angle
+from clfd_bench.sim.limits import (
+    CollisionMonitor,
+    MotionLimits,
+    MotionMonitor,
+    floor_height,
+    panda_limits,
+)
 from clfd_bench.sim.render import CameraSpec, OffscreenRenderer
 from clfd_bench.sim.robot import (
     FINGER_OPEN,
     HOME_QPOS,
+    ROBOT_BODIES,
+    SHOULDER_JOINT,
     RobotIndex,
     attach_spec,
     gripper_ctrl,
@@ -70,6 +99,14 @@ from clfd_bench.sim.robot import (
 )
 
 CONTROL_HZ = 60.0
+#: Gain of the IK's posture task in the envs (`PoseTracker(posture_gain=...)`): the posture
+#: error is corrected by 10 % per control step, so the arm's null-space motion stays slow. With
+#: the full correction (gain 1) the arm swings through its null space at the joint velocity
+#: limits while the wrist turns (Pouring demo 7: joints 2 and 5 at 2.175 / 2.61 rad/s for a
+#: hand turning at 0.4 rad/s, even 2× slower), and the servos' lag puts the hand up to 12 mm off
+#: the command; with 0.1 the same replays' joints stay under 1.3 rad/s and the 2× slower one
+#: within 5.5 mm. The hand's path is the same (the IK error stays under 0.5 mm either way).
+IK_POSTURE_GAIN = 0.1
 _BLOWUP_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -90,6 +127,14 @@ def load_task(dataset: str, name: str):
     return ds.tasks[names.index(name)]
 
 
+def _resolve_limits(limits: str | MotionLimits | None) -> MotionLimits | None:
+    if limits is None or isinstance(limits, MotionLimits):
+        return limits
+    if limits == "panda":
+        return panda_limits()
+    raise ValueError(f"limits must be 'panda', a MotionLimits or None, got {limits!r}")
+
+
 def check_finite_action(action: np.ndarray) -> None:
     """Raises ValueError naming the NaN/inf entries of `action`."""
     bad = ~np.isfinite(action)
@@ -108,6 +153,9 @@ class PandaEnv(gym.Env):
             round(control_dt / physics_dt) substeps.
         ik_iterations: mink QP iterations per control step (their dt splits the control period).
         width, height: rendered image size.
+        limits: "panda" (default: `clfd_bench.sim.limits.panda_limits()`), a `MotionLimits`, or
+            None (no reflex, reach, tracking or collision checks; physics blow-ups still end the
+            episode). Subclasses forward it.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": int(CONTROL_HZ)}
@@ -128,7 +176,8 @@ class PandaEnv(gym.Env):
         return obj
 
     def __init__(self, render_mode: str | None = None, *, physics_dt: float = 0.002,
-                 ik_iterations: int = 1, width: int = 640, height: int = 480):
+                 ik_iterations: int = 1, width: int = 640, height: int = 480,
+                 limits: str | MotionLimits | None = "panda"):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}"
                              f", got {render_mode!r}")
@@ -150,8 +199,20 @@ class PandaEnv(gym.Env):
         self.data = mujoco.MjData(self.model)
         self.robot = RobotIndex(self.model)
         self.tracker = PoseTracker(robot_model(self.tool), iterations=ik_iterations,
-                                   dt=self.control_dt / ik_iterations)
+                                   dt=self.control_dt / ik_iterations,
+                                   posture_gain=IK_POSTURE_GAIN)
         self._bind()
+        self.limits = _resolve_limits(limits)
+        self.motion_monitor: MotionMonitor | None = None
+        self.collision_monitor: CollisionMonitor | None = None
+        if self.limits is not None:
+            mujoco.mj_kinematics(self.model, self.data)
+            shoulder = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, SHOULDER_JOINT)
+            self.motion_monitor = MotionMonitor(
+                self.limits, self.control_dt, shoulder=self.data.xanchor[shoulder],
+                floor_height=floor_height(self.model))
+            self.collision_monitor = CollisionMonitor(self.model, ROBOT_BODIES,
+                                                      self.limits.collision_force)
 
         self.action_space = self._action_space()
         obs_spaces: dict[str, spaces.Space] = {
@@ -169,6 +230,8 @@ class PandaEnv(gym.Env):
         self._step_count = 0
         self._q_ref_prev = HOME_QPOS.copy()
         self._failure_reason: str | None = None
+        self._failure: dict[str, Any] | None = None
+        self._hold_q: np.ndarray | None = None
         self._last_success = False
         self._tracking_error = (0.0, 0.0)
         self._ik_error = (0.0, 0.0)
@@ -318,10 +381,15 @@ class PandaEnv(gym.Env):
         self._target_quat = self.data.xquat[hand].copy()
         self._step_count = 0
         self._failure_reason = None
+        self._failure = None
+        self._hold_q = None
         self._last_success = False
         self._tracking_error = (0.0, 0.0)
         self._ik_error = (0.0, 0.0)
         self._warn_base = np.array([self.data.warning[w].number for w in _BLOWUP_WARNINGS])
+        if self.motion_monitor is not None:
+            self.motion_monitor.reset(self._target_pos, self._target_quat, q0)
+            self.collision_monitor.reset()
 
     def step(self, action: np.ndarray):
         action = np.asarray(action, dtype=np.float64)
@@ -329,36 +397,67 @@ class PandaEnv(gym.Env):
             raise ValueError(f"action must have shape {self.action_space.shape}, "
                              f"got {action.shape}")
         check_finite_action(action)
+        step = self._step_count
+        if self._hold_q is not None:  # stopped after a failure: hold, ignore the command
+            self._drive(self._hold_q)
+            self._step_count += 1
+            return self._end_step(terminated=True)
+
         pos, quat, grip = self._action_to_target(action)
         q_ref, ik_pe, ik_re = self.tracker.track(pos, quat)
         self._target_pos = np.asarray(pos, dtype=float).copy()
         self._target_quat = self.tracker._target_quat.copy()
         self._ik_error = (ik_pe, ik_re)
-        if grip is not None:
-            self._apply_gripper(grip)
-        self._drive(q_ref)
+        monitor = self.motion_monitor
+        refused = (monitor.check_command(self._target_pos, self._target_quat, q_ref)
+                   if monitor is not None else None)
+        if refused is not None:  # the controller refuses the command: the robot stops
+            self._fail(refused.reason, refused.as_dict())
+            self._drive(self._hold_q)
+        else:
+            if grip is not None:
+                self._apply_gripper(grip)
+            self._drive(q_ref)
         self._step_count += 1
 
-        terminated = False
         if self._failure_reason is None:
-            self._failure_reason = self._check_blowup()
-        if self._failure_reason is not None:
-            terminated = True
-            success = False
-        else:
-            self._after_step()
+            blowup = self._check_blowup(step)
+            if blowup is not None:
+                self._fail(blowup, {"kind": "blowup", "limit": "physics", "value": None,
+                                    "bound": None, "unit": "", "step": step})
+        if self._failure_reason is None:
             hand = self.robot.hand_body
             self._tracking_error = (
                 float(np.linalg.norm(self.data.xpos[hand] - self._target_pos)),
                 quat_angle(self.data.xquat[hand], self._target_quat))
-            truncated_now = self._step_count >= self.horizon
-            success = bool(self._is_success(final=truncated_now))
-        self._last_success = success
+            if monitor is not None:
+                bad = (self.collision_monitor.check(self.data, step)
+                       or monitor.check_tracking(*self._tracking_error))
+                if bad is not None:
+                    self._fail(bad.reason, bad.as_dict())
+        if self._failure_reason is not None:
+            return self._end_step(terminated=True)
+        self._after_step()
+        truncated_now = self._step_count >= self.horizon
+        self._last_success = bool(self._is_success(final=truncated_now))
+        return self._end_step(terminated=False)
+
+    def _end_step(self, terminated: bool):
+        if terminated:
+            self._last_success = False
         truncated = self._step_count >= self.horizon and not terminated
         obs = self._get_obs()
         if self.render_mode == "rgb_array" and self._renderer is None:
             self._make_renderer()
-        return obs, (1.0 if success else 0.0), terminated, truncated, self._info()
+        return obs, (1.0 if self._last_success else 0.0), terminated, truncated, self._info()
+
+    def _fail(self, reason: str, failure: dict[str, Any]) -> None:
+        """Ends the episode as a failure; the robot holds the configuration it is at now."""
+        self._failure_reason = reason
+        self._failure = failure
+        q = self.data.qpos[self.robot.arm_qpos]
+        self._hold_q = q.copy() if np.isfinite(q).all() else self._q_ref_prev.copy()
+        self._q_ref_prev = self._hold_q.copy()  # no feed-forward: the reference stands still
 
     def evaluate(self) -> dict[str, Any]:
         """Decides success now (as at the episode's end) and returns the info dict."""
@@ -398,7 +497,7 @@ class PandaEnv(gym.Env):
             mujoco.mj_step(m, d)
         self._q_ref_prev = np.array(q_ref, dtype=float)
 
-    def _check_blowup(self) -> str | None:
+    def _check_blowup(self, step: int) -> str | None:
         d = self.data
         counts = np.array([d.warning[w].number for w in _BLOWUP_WARNINGS])
         new = counts > self._warn_base
@@ -407,7 +506,7 @@ class PandaEnv(gym.Env):
             return None
         names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
         what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"
-        return (f"physics blow-up at step {self._step_count} ({what}); the scene is unstable: "
+        return (f"physics blow-up at step {step} ({what}); the scene is unstable: "
                 "check the task MJCF (masses, solver settings, timestep)")
 
     def _get_obs(self) -> dict[str, np.ndarray]:
@@ -429,6 +528,7 @@ class PandaEnv(gym.Env):
             "demo": self.demo,
             "step": self._step_count,
             "failure_reason": self._failure_reason,
+            "failure": None if self._failure is None else dict(self._failure),
         }
         info.update(self._task_info())
         return info
@@ -447,9 +547,13 @@ class PandaEnv(gym.Env):
             "tracker_q": self.tracker.configuration.q.copy(),
             "tracker_posture": self.tracker.posture_task.target_q.copy(),
             "episode": {k: getattr(self, k) for k in (
-                "demo", "horizon", "_step_count", "_q_ref_prev", "_failure_reason",
-                "_last_success", "_tracking_error", "_ik_error", "_target_pos", "_target_quat",
-                "_warn_base")},
+                "demo", "horizon", "_step_count", "_q_ref_prev", "_failure_reason", "_failure",
+                "_hold_q", "_last_success", "_tracking_error", "_ik_error", "_target_pos",
+                "_target_quat", "_warn_base")},
+            "monitor": (self.motion_monitor.state() if self.motion_monitor is not None
+                        else None),
+            "collision_peak": (self.collision_monitor.peak if self.collision_monitor is not None
+                               else 0.0),
             "task": self._task_state(),
         }
 
@@ -470,4 +574,7 @@ class PandaEnv(gym.Env):
         for k, v in state["episode"].items():
             setattr(self, k, v)
         self.tracker.set_target(self._target_pos, self._target_quat)
+        if self.motion_monitor is not None and state.get("monitor") is not None:
+            self.motion_monitor.set_state(state["monitor"])
+            self.collision_monitor.peak = state["collision_peak"]
         self._restore_task_state(state["task"])

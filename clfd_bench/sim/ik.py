@@ -51,12 +51,18 @@ class PoseTracker:
         velocity_limits: apply the Panda's joint velocity limits (datasheet values).
         lm_damping: Levenberg-Marquardt damping of the frame task (helps near singularities and
             for unreachable targets).
+        posture_gain: fraction of the posture error the posture task corrects per QP
+            iteration (mink's task gain). 1 corrects it at once: in the arm's null space nothing
+            opposes the posture task, so whenever that null space turns (e.g. as the wrist
+            rotates) the arm swings back towards the posture at the joint velocity limit. Online
+            tracking (the envs) uses a smaller gain (see `clfd_bench.envs.base`).
     """
 
     def __init__(self, model, frame: str = "hand", frame_type: str = "body",
                  posture_cost: float = 1e-3, position_cost: float = 1.0,
                  orientation_cost: float = 1.0, iterations: int = 1, dt: float = 1.0 / 60.0,
-                 solver: str = "daqp", velocity_limits: bool = True, lm_damping: float = 1e-4):
+                 solver: str = "daqp", velocity_limits: bool = True, lm_damping: float = 1e-4,
+                 posture_gain: float = 1.0):
         if iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {iterations}")
         if not dt > 0:
@@ -84,7 +90,9 @@ class PoseTracker:
         self.frame_task = mink.FrameTask(frame, frame_type, position_cost=position_cost,
                                          orientation_cost=orientation_cost,
                                          lm_damping=lm_damping)
-        self.posture_task = mink.PostureTask(model, cost=posture_cost)
+        if not 0.0 < posture_gain <= 1.0:
+            raise ValueError(f"posture_gain must be in (0, 1], got {posture_gain}")
+        self.posture_task = mink.PostureTask(model, cost=posture_cost, gain=posture_gain)
         self.tasks = [self.frame_task, self.posture_task]
         self.limits: list = [mink.ConfigurationLimit(model)]
         self._varying_limits = list(self.limits)

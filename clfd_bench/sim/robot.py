@@ -38,6 +38,9 @@ ROBOT_BODIES: tuple[str, ...] = (
     "link0", "link1", "link2", "link3", "link4", "link5", "link6", "link7",
     "hand", "left_finger", "right_finger",
 )
+#: The joint whose axis point is the Panda's shoulder (joint 1's and 2's axes meet there, 0.333 m
+#: above the base): the reach is measured from it.
+SHOULDER_JOINT = "joint2"
 #: Distance of the grasp point (between the fingertips) along the hand's z axis, metres.
 GRASP_OFFSET = 0.1034
 #: Distance of the relaxed pen tip along the hand's z axis, metres (see assets/panda/pen.xml).
