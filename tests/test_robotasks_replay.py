@@ -1,37 +1,89 @@
-"""Replays through the RoboTasks envs: demonstrations succeed, wrong trajectories fail.
-
-A subset of `clfd-bench replay --env robotasks --perturb all` (which runs all 9 demos of every
-task with every perturbation): two demos per task, and for each task the perturbation whose
-outcome is closest to its threshold (openbox demo 4 at half time is 2.8 deg short of the
-lid's balance angle; pouring demo 1 has tipped the cup furthest at half time).
-"""
+"""Replays through the RoboTasks envs: demonstrations succeed, wrong executions fail for the
+reason an observer would give (a subset of `clfd-bench replay --env robotasks --perturb all`,
+which runs all 9 demos of every task with every perturbation family; `test_execution_families`
+runs one demo per family on every env). The motion-limit checks of `PandaEnv` are off here
+(`limits=None`): these tests pin down the scenes' own criteria."""
 
 from __future__ import annotations
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
-from clfd_bench.execution.replay import replay
+from clfd_bench.envs.base import load_task
+from clfd_bench.execution.perturb import PerturbContext, perturb
+from clfd_bench.execution.rollout import rollout
 
-CASES = {
-    "clfd/BoxOpening-v0": ((0, 4), "truncate", 4),
-    "clfd/BottleShelving-v0": ((0, 4), "other-task", 4),
-    "clfd/PlateStacking-v0": ((3, 7), "reverse", 3),
-    "clfd/Pouring-v0": ((1, 5), "truncate", 1),
-}
+ENVS = {"openbox": "clfd/BoxOpening-v0", "bottle2shelf": "clfd/BottleShelving-v0",
+        "platestandingtolying": "clfd/PlateStacking-v0", "pouring": "clfd/Pouring-v0"}
 
 
-@pytest.mark.parametrize("env_id", sorted(CASES))
-def test_demos_succeed_and_a_perturbed_demo_fails(env_id):
-    demos, perturb, perturbed_demo = CASES[env_id]
-    env = gym.make(env_id)
-    try:
-        for rec in replay(env_id, demos=demos, env=env):
-            assert rec.success, (env_id, rec.demo, rec.info)
-            assert rec.max_tracking_error_m < 0.02, (env_id, rec.demo)
-            assert rec.info["release_reason"] != "slipped"
-        (rec,) = replay(env_id, demos=[perturbed_demo], perturb=perturb, env=env)
-        assert not rec.success, (env_id, perturb, rec.info)
-    finally:
+@pytest.fixture(scope="module")
+def envs():
+    made = {task: gym.make(env_id, limits=None, disable_env_checker=True)
+            for task, env_id in ENVS.items()}
+    yield made
+    for env in made.values():
         env.close()
+
+
+def _run(env, family, demo, other_task=None):
+    base = env.unwrapped
+    ctx = PerturbContext(demo=demo, other=None if other_task is None else np.asarray(
+        load_task("robotasks", other_task).demos[demo]))
+    return rollout(env, perturb(family, base.demo_trajectory(demo), ctx), demo=demo)
+
+
+@pytest.mark.parametrize("task", sorted(ENVS))
+def test_demos_succeed_holding_their_prop_until_the_gripper_opens(envs, task):
+    for demo in (0, 7):
+        r = _run(envs[task], "demo", demo)
+        assert r.success, (task, demo, r.info)
+        assert r.info["release_reason"] in ("opened", None), r.info  # pouring never lets go
+        assert r.info["grip_load_max"] < 1.0
+        assert np.nanmax(r.tracking_error_pos) < 0.02
+
+
+def test_a_lid_opened_without_turning_the_hand_slips_out_and_stays_shut_enough(envs):
+    r = _run(envs["openbox"], "frozen-orientation", 3)
+    assert not r.success
+    assert r.info["release_reason"] == "slipped" and "handle_turn" in r.info["slip_cause"]
+    assert r.info["lid_max_held_angle_deg"] < r.info["lid_open_needed_deg"] - 20
+
+
+def test_a_lid_left_half_open_is_not_open(envs):
+    r = _run(envs["openbox"], "stop-early", 4)  # the demo reaching furthest at half time
+    assert not r.success and not r.info["lid_opened_by_grasp"]
+    assert r.info["release_reason"] == "opened"
+
+
+def test_a_bottle_dropped_from_higher_than_the_demos_fails(envs):
+    env = envs["bottle2shelf"]
+    traj = env.unwrapped.demo_trajectory(2).copy()
+    t = np.linspace(0.0, 1.0, len(traj)) ** 4
+    traj[:, 2] += 0.08 * t  # the same path, ending 8 cm higher
+    r = rollout(env, traj, demo=2)
+    assert not r.success and r.info["release_reason"] == "opened"
+    assert r.info["release_height"] > env.unwrapped.spec_doc["success"]["max_release_height"]
+
+
+def test_a_bottle_swung_straight_at_the_shelf_hits_it(envs):
+    r = _run(envs["bottle2shelf"], "shortcut", 5)
+    assert not r.success and r.info["release_reason"] == "slipped"
+
+
+def test_a_plate_moved_sideways_out_of_its_rack_knocks_it(envs):
+    r = _run(envs["platestandingtolying"], "rush-wait", 1)
+    assert not r.success
+    assert not r.info["rack_in_place"] or r.info["release_reason"] == "slipped", r.info
+
+
+def test_beans_poured_off_target_fail(envs):
+    env = envs["pouring"]
+    r = _run(env, "mirror", 6)
+    c = env.unwrapped.spec_doc["success"]
+    assert not r.success
+    offset = r.info["pour_offset"]  # None: nothing left the cup
+    assert (r.info["spilled_fraction"] > c["max_spilled_fraction"]
+            or offset is None or offset > c["pour_radius"]), r.info

@@ -1,26 +1,34 @@
 """Derives the RoboTasks task specs (`tasks/<task>.toml`) from the demonstrations.
 
-`derive_spec(task)` recomputes every data-derived number of a scene and the per-demo start
-configurations; `eval/make_task_specs.py` writes the results. What is derived:
+`derive_spec(task)` recomputes every data-derived number of a scene, its success thresholds and
+the per-demo start configurations; `eval/make_task_specs.py` writes the results, with each
+number's procedure as a comment next to it. What is derived:
 
 - openbox: the hinge (a horizontal axis fitted to the arcs the grasp points trace,
-  `clfd_bench.sim.scene_fit.fit_hinge`), placed as the box's hinge frame;
+  `clfd_bench.sim.scene_fit.fit_hinge`), placed as the box's hinge frame; how far the lid's
+  edge slides and turns in the fingers in the demos (`scene_fit.grip_slips`), + margins: the
+  grasp's slip bounds; the opening angle the grasp must reach;
 - bottle2shelf: the shelf top 1 cm under the lowest point the held bottle reaches at the
-  demos' end poses, centred under the bottles' end positions;
+  demos' end poses, centred under the bottles' end positions; the release height and place
+  radius bounds;
 - platestandingtolying: the table 3 mm under the lowest point the plate reaches in the first
-  fifth of the demos (where it stands in the rack), the rack blocks 8 mm clear of where the
+  fifth of the demos (where it stands in the rack), the rack's pegs 1.5 cm clear of where the
   plate's rim passes in that fifth, the platform top 1 cm under the lowest point of the plate
-  in the last fifth of the demos, centred under the plates' end positions;
+  in the last fifth of the demos, centred under the plates' end positions; the release height
+  and place radius bounds;
 - pouring: the container centred on the median of where the beans first reach the table when
   the demos are replayed over a flat tray, wide enough for 95 % of them (+ a bean radius +
-  1 cm), its rim 2 cm under the lowest point the cup reaches in the demos;
+  1 cm), its rim 2 cm under the lowest point the cup reaches in the demos; the bean-count
+  thresholds from the demos replayed into that container;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
-  tracking; a demo whose backward start does not track (platestandingtolying: the goal
-  configuration's branch hits joint 5's limit for some demos) gets the IK solution of its
-  first pose from `home` instead, if that tracks.
+  tracking; a demo whose backward start does not track gets the IK solution of its first pose
+  from `home` instead, if that tracks; a camera framing the demos' workspace.
 
-Design constants (not data-derived) sit in the `DESIGN` table below and in the task MJCF.
+Margins (design constants, `POSITION_MARGIN`, `TURN_MARGIN_DEG`): a bound taken from the demos
+is widened by what good-but-imperfect executions add: 1 cm (the smooth noise and start offsets
+an execution must survive) + 5 mm (servo lag and IK error). Design constants (not data-derived)
+sit in the `DESIGN` table below and in the task MJCF.
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ from clfd_bench.sim.robot import robot_model
 from clfd_bench.sim.scene_fit import (
     fit_hinge,
     grasp_points,
+    grip_slips,
     hinge_angles,
     lowest_point,
     prop_pose,
@@ -51,51 +60,74 @@ from clfd_bench.sim.start_configs import (
 #: A start configuration "tracks" when forward IK stays within these of the demo.
 TRACK_TOL_POS = 1e-3
 TRACK_TOL_ROT = 1e-2
+#: Added to a position bound measured on the demos: 1 cm of noise / offset an execution must
+#: survive + 5 mm of servo lag and IK error (m).
+POSITION_MARGIN = 0.015
+#: Added to an orientation bound measured on the demos (deg): the 1.5 cm position margin moves
+#: the lid's angle by up to 4 deg at the demos' smallest grasp radius (0.21 m), + 6 deg.
+TURN_MARGIN_DEG = 10.0
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
 #: The cup's axis (its z) along minus the hand's x axis: a -90 deg turn about the hand's y.
 CUP_IN_GRASP = [float(np.sqrt(0.5)), 0.0, -float(np.sqrt(0.5)), 0.0]
 
-#: Design constants per task (documented choices, not derived from the data).
+#: The Franka Hand's grip, shared by every task (clfd_bench.sim.grasp): 70 N continuous grasp
+#: force (datasheet), friction coefficient 0.5 (stock fingertips on PET/ceramic/wood), 17 x 17
+#: mm pads; the load ratio is averaged over 6 control steps (0.1 s) before it breaks the grasp.
+GRIP = {"grip_force": 70.0, "mu": 0.5, "filter_steps": 6}
+
+#: Design constants per task (documented choices, not derived from the data). Physics steps
+#: of 4 ms (4 per 60 Hz control step): the demos track within ~1.5 mm (2 ms: ~1 mm) at half
+#: the cost.
 DESIGN: dict[str, dict[str, Any]] = {
     "openbox": {
-        "task": {"physics_dt": 0.002},
-        "grasp": {"kind": "connect", "body": "lid_handle", "exclude": ["lid"], "max_slip": 0.03,
-                  "solref": [0.03, 1.0],
-                  "max_slip_angle_deg": 30.0, "closed_opening": 0.006},
-        "success": {"min_lid_angle_deg": 100.0},
+        "task": {"physics_dt": 0.004},
+        "grasp": {"kind": "weld", "body": "lid_handle", "exclude": ["lid"], **GRIP,
+                  "contact": "patch", "max_slip": 0.03, "max_slip_angle_deg": 30.0,
+                  "closed_opening": 0.006, "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
+        "success": {"stay_open_tolerance_deg": 3.0},
+        "camera": {"distance": 1.2, "azimuth": 125.0, "elevation": -22.0},
     },
     "bottle2shelf": {
-        "task": {"physics_dt": 0.002},
-        "grasp": {"kind": "weld", "body": "bottle", "max_slip": 0.03,
-                  "max_slip_angle_deg": 30.0, "closed_opening": 0.014,
-                  "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
-        "scene": {"shelf_half_size": [0.12, 0.09], "clearance": 0.01},
+        "task": {"physics_dt": 0.004},
+        "grasp": {"kind": "weld", "body": "bottle", **GRIP, "contact": "line_z",
+                  "contact_radius": 0.0135, "max_slip": 0.03, "max_slip_angle_deg": 30.0,
+                  "closed_opening": 0.0135, "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": IDENTITY},
+        "scene": {"shelf_half_size": [0.12, 0.09], "clearance": POSITION_MARGIN,
+                  "table_fraction": 0.2,
+                  "table_clearance": POSITION_MARGIN},
         "success": {"max_tilt_deg": 20.0, "min_height": 0.0, "max_height": 0.045},
+        "camera": {"distance": 1.15, "azimuth": 140.0, "elevation": -24.0},
     },
     "platestandingtolying": {
-        "task": {"physics_dt": 0.002},
-        "grasp": {"kind": "weld", "body": "plate", "max_slip": 0.03,
-                  "max_slip_angle_deg": 30.0, "closed_opening": 0.005,
+        "task": {"physics_dt": 0.004},
+        "grasp": {"kind": "weld", "body": "plate", **GRIP, "contact": "patch",
+                  "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.005,
                   "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
-        "scene": {"platform_half_size": [0.13, 0.08], "clearance": 0.01, "place_fraction": 0.2,
-                  "table_clearance": 0.003, "block_clearance": 0.008, "block_x": 0.045,
+        "scene": {"platform_half_size": [0.13, 0.08], "clearance": POSITION_MARGIN,
+                  "place_fraction": 0.2, "table_clearance": POSITION_MARGIN,
+                  "block_clearance": POSITION_MARGIN, "block_x": 0.045, "block_rise": 0.024,
+                  "rack_base_thickness": 0.005,
                   "rack_fraction": 0.2},
         "success": {"max_tilt_deg": 25.0, "min_height": 0.0, "max_height": 0.03,
-                    "max_block_shift": 0.02, "max_block_tilt_deg": 15.0},
+                    "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
+        "camera": {"distance": 1.25, "azimuth": 140.0, "elevation": -24.0},
     },
     "pouring": {
         "task": {"physics_dt": 0.004, "release_after": False},
-        "grasp": {"kind": "weld", "body": "cup", "max_slip": 0.03,
-                  "max_slip_angle_deg": 30.0, "closed_opening": 0.04,
-                  "prop_pos": [0.0, 0.0, 0.0], "prop_quat": CUP_IN_GRASP},
+        "grasp": {"kind": "weld", "body": "cup", **GRIP, "contact": "line_x",
+                  "contact_radius": 0.04, "max_slip": 0.03, "max_slip_angle_deg": 30.0,
+                  "closed_opening": 0.04, "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": CUP_IN_GRASP},
         "scene": {"n_beans": 9, "bean_radius": 0.011, "bean_mass": 0.0025,
                   "cup_inner_radius": 0.036, "cup_floor": -0.042,
                   "rim_clearance": 0.02, "landing_quantile": 0.95, "margin": 0.01,
-                  "min_half_size": 0.05},
+                  "min_half_size": 0.05, "jitter_factor": 1.3},
         "solver": {"solver": "newton", "iterations": 20, "ls_iterations": 10,
                    "tolerance": 1e-8, "cone": "pyramidal"},
-        "success": {"min_fraction": 0.7},
+        "success": {},
+        "camera": {"distance": 1.0, "azimuth": 135.0, "elevation": -28.0},
     },
 }
 
@@ -134,6 +166,47 @@ def _held_prop_lows(task: str, body: str, positions: np.ndarray, quaternions: np
     return lows.reshape(shape), coms.reshape(shape + (3,))
 
 
+def _path_clearance(task, doc: dict[str, Any], body: str, support_geoms: tuple[str, ...],
+                    every: int = 3) -> np.ndarray:
+    """[N] the smallest distance (m) between the held prop's geoms and `support_geoms` along
+    each demo (every `every`-th sample), in the scene of the provisional spec `doc`."""
+    env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
+    m, d = env.model, env.data
+    bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
+    mine = [g for g in range(m.ngeom) if m.geom_bodyid[g] == bid and m.geom_contype[g]]
+    theirs = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in support_geoms]
+    grasp = doc["grasp"]
+    out = np.full(len(task.positions), np.inf)
+    fromto = np.zeros(6)
+    for n in range(len(task.positions)):
+        env.reset(options={"demo": n})
+        g = grasp_points(task.positions[n], task.quaternions[n])
+        for t in range(0, task.positions.shape[1], every):
+            p, q = prop_pose(g[t], task.quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
+            _place(m, d, body, p, q)
+            for a in mine:
+                for b in theirs:
+                    out[n] = min(out[n], mujoco.mj_geomDistance(m, d, a, b, 0.1, fromto))
+    env.close()
+    return out
+
+
+def _lower_until_clear(task, doc: dict[str, Any], body: str, key: str,
+                       support_geoms: tuple[str, ...], clearance: float
+                       ) -> tuple[float, np.ndarray]:
+    """Lowers the support top `doc["scene"][key]` (its z) until every demo's held prop stays
+    `clearance` away from it along its whole path. Returns (top z, clearance per demo [N])."""
+    for _ in range(4):
+        gaps = _path_clearance(task, doc, body, support_geoms)
+        deficit = clearance - float(gaps.min())
+        if deficit <= 5e-4:
+            break
+        top = list(doc["scene"][key])
+        top[2] -= deficit
+        doc["scene"][key] = top
+    return float(doc["scene"][key][2]), gaps
+
+
 def start_configurations(positions: np.ndarray, quaternions: np.ndarray
                          ) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Per-demo start configurations [N, 7], how each was found ("backward" or "home"), and
@@ -154,34 +227,139 @@ def start_configurations(positions: np.ndarray, quaternions: np.ndarray
     return starts, methods, errors
 
 
+def _camera(task, design) -> dict[str, Any]:
+    """A camera looking at the middle of the demos' grasp points (design angles/distance)."""
+    g = grasp_points(task.positions, task.quaternions).reshape(-1, 3)
+    centre = (g.min(0) + g.max(0)) / 2
+    return {"lookat": [float(v) for v in centre], **design["camera"]}
+
+
 def _derive_openbox(task, design, starts) -> dict[str, Any]:
     g = grasp_points(task.positions, task.quaternions)
     fit = fit_hinge(g)
     ang = np.degrees(hinge_angles(g, fit))
     half = ang.shape[1] // 2
+    radial, axial, turn = grip_slips(task.positions, task.quaternions, fit)
+    m, mt = POSITION_MARGIN, TURN_MARGIN_DEG
+    slip = [["handle_radial", float(radial.min() - m), float(radial.max() + m)],
+            ["handle_axial", float(axial.min() - m), float(axial.max() + m)],
+            ["handle_turn", 0.0, float(np.radians(np.degrees(turn.max()) + mt))]]
+    # Demo j's end angle, less what the 1.5 cm position margin turns the lid by at its radius;
+    # never below the angle any demo has reached at half time.
+    margin_deg = np.degrees(POSITION_MARGIN / fit.radii)
+    need = np.maximum(ang[:, -1] - margin_deg, ang[:, half].max() + 1.0)
     return {
         "scene": {"hinge_pos": fit.point, "hinge_yaw_deg": float(np.degrees(fit.yaw))},
+        "grasp": {"slip_joints": slip},
+        "success": {"min_open_angle_deg": need},
         "derived": {
             "hinge_axis": fit.axis, "grasp_radii": fit.radii, "grasp_axial_offsets": fit.axial,
             "radial_residual_max": fit.radial_residual,
             "axial_residual_max": fit.axial_residual,
             "grasp_angle_start_deg": ang[:, 0], "grasp_angle_half_deg": ang[:, half],
             "grasp_angle_end_deg": ang[:, -1],
+            "edge_radial_slip_range": [radial.min(1), radial.max(1)],
+            "edge_axial_slip_range": [axial.min(1), axial.max(1)],
+            "edge_turn_max_deg": np.degrees(turn.max(1)),
+        },
+        "comments": {
+            "grasp": {"slip_joints": (
+                "how far the lid's edge may move in the fingers from where it was grasped "
+                "before it slips out: [joint, lower, upper] (m; handle_turn: rad, the angle the "
+                "hand turns relative to the lid). Procedure: the demos' grasp points about the "
+                "fitted hinge give the edge's radial and axial slide and the hand's turn "
+                "relative to the lid at each sample (scene_fit.grip_slips; [derived] "
+                "edge_*); bound = the demos' min / max, widened by 1.5 cm (turn: by 10 deg)")},
+            "success": {"min_open_angle_deg": (
+                "per demo j: the lid angle the grasp must have opened the lid to while holding "
+                "it. Procedure: demo j's final grasp angle ([derived] grasp_angle_end_deg) less "
+                "the angle 1.5 cm of arc make at its grasp radius ([derived] grasp_radii), at "
+                "least 1 deg more than any demo has reached at half time "
+                "(grasp_angle_half_deg, max)"),
+                "stay_open_tolerance_deg": (
+                "design: the lid may settle this much below min_open_angle_deg after the "
+                "gripper lets go (the friction hinges hold it)")},
         },
     }
+
+
+#: Radius (m) around where demo j lets the prop go within which an execution must let it go:
+#: the 1.5 cm position margin + 5 mm for the prop's swing while the gripper opens.
+PLACE_RADIUS = POSITION_MARGIN + 0.005
+
+
+def _place_bounds(lows: np.ndarray, coms: np.ndarray, top: float) -> dict[str, Any]:
+    """Release-height and place bounds from the held prop at the demos' end poses (lowest
+    points [N], centres [N, 3])."""
+    drop = lows - top
+    return {
+        "success": {"max_release_height": float(drop.max() + POSITION_MARGIN),
+                    "place_radius": PLACE_RADIUS},
+        "place_centre": coms[:, :2],
+        "derived": {"release_height_demos": drop},
+        "comments": {
+            "max_release_height": (
+                "the prop's lowest point may be at most this high above the support's top when "
+                "the gripper opens. Procedure: the held prop at each demo's last pose "
+                "([derived] release_height_demos), max + 1.5 cm"),
+            "place_radius": (
+                "the prop's centre must be within this horizontal distance of where demo j "
+                "lets it go ([scene] place_centre[j]) when the gripper opens: 1.5 cm of "
+                "position margin + 5 mm for the prop's swing as the fingers open"),
+        },
+    }
+
+
+_PLACE_CENTRE_COMMENT = ("per demo j: where the prop's centre (x, y) is when demo j lets it go "
+                         "(the held prop at demo j's last pose)")
+
+
+def _table_below(task, name: str, body: str, grasp: dict[str, Any], fraction: float,
+                 clearance: float) -> tuple[float, np.ndarray]:
+    """The table height: `clearance` under the lowest point the held prop reaches in the first
+    `fraction` of the demos (where it starts, near the table), at most 0 (the robot's base).
+    Returns (table_z, lowest point per demo [N])."""
+    n = int(task.positions.shape[1] * fraction)
+    lows, _ = _held_prop_lows(name, body, task.positions[:, :n], task.quaternions[:, :n], grasp)
+    return float(min(0.0, lows.min() - clearance)), lows.min(1)
+
+
+_TABLE_COMMENT = (
+    "the table top (m, robot base frame). Procedure: the lowest point the held prop reaches in "
+    "the first fifth of the demos ([derived] start_lowest_z), less a clearance of 1.5 cm (a 1 cm "
+    "start offset in any direction must not push the prop into the table; plate: + the rack's "
+    "base), at most 0 (lower: the robot stands on a mount)")
 
 
 def _derive_bottle(task, design, starts) -> dict[str, Any]:
     d = design["scene"]
     grasp = design["grasp"]
+    table_z, start_lows = _table_below(task, "bottle2shelf", "bottle", grasp,
+                                       d["table_fraction"], d["table_clearance"])
     lows, coms = _held_prop_lows("bottle2shelf", "bottle", task.positions[:, -1],
                                  task.quaternions[:, -1], grasp)
-    top = float(lows.min() - d["clearance"])
     centre = coms[:, :2].mean(0)
+    scene = {"table_z": table_z,
+             "shelf_top": [float(centre[0]), float(centre[1]), float(lows.min() - d["clearance"])],
+             "shelf_half_size": d["shelf_half_size"], "shelf_yaw_deg": 0.0,
+             "place_centre": coms[:, :2]}
+    top, gaps = _lower_until_clear(task, _doc("bottle2shelf", design, scene, {}, starts),
+                                   "bottle", "shelf_top", ("shelf_board", "shelf_support"),
+                                   d["clearance"])
+    place = _place_bounds(lows, coms, top)
     return {
-        "scene": {"shelf_top": [float(centre[0]), float(centre[1]), top],
-                  "shelf_half_size": d["shelf_half_size"], "shelf_yaw_deg": 0.0},
-        "derived": {"bottle_end_lowest_z": lows, "bottle_end_com": coms},
+        "scene": scene,
+        "success": place["success"],
+        "derived": {"start_lowest_z": start_lows, "bottle_end_lowest_z": lows,
+                    "bottle_end_com": coms, "shelf_path_clearance": gaps, **place["derived"]},
+        "comments": {"success": place["comments"], "scene": {
+            "table_z": _TABLE_COMMENT,
+            "shelf_top": "centre of the shelf's top: under the mean of the bottle's centres at "
+                         "the demos' last poses, 1.5 cm under the lowest point the bottle "
+                         "reaches there, and lower if needed until every demo's bottle stays "
+                         "1.5 cm clear of the shelf on its way ([derived] "
+                         "shelf_path_clearance)",
+            "place_centre": _PLACE_CENTRE_COMMENT}},
     }
 
 
@@ -189,34 +367,71 @@ def _derive_plate(task, design, starts) -> dict[str, Any]:
     d = design["scene"]
     grasp = design["grasp"]
     n_rack = int(task.positions.shape[1] * d["rack_fraction"])
-    lows_rack, _ = _held_prop_lows("platestandingtolying", "plate", task.positions[:, :n_rack],
-                                   task.quaternions[:, :n_rack], grasp)
-    table_z = float(min(0.0, lows_rack.min() - d["table_clearance"]))
+    # The plate stands 1.5 cm above the rack's base, the base on the table.
+    table_z, rack_lows = _table_below(task, "platestandingtolying", "plate", grasp,
+                                      d["rack_fraction"],
+                                      d["table_clearance"] + d["rack_base_thickness"])
     n_place = int(task.positions.shape[1] * d["place_fraction"])
     lows_end, coms_end = _held_prop_lows("platestandingtolying", "plate",
                                          task.positions[:, -n_place:],
                                          task.quaternions[:, -n_place:], grasp)
     top = float(lows_end.min() - d["clearance"])
+    centre = coms_end[:, -1, :2].mean(0)
+    provisional = {"table_z": table_z, "block_offsets": [[0.0, 9.0]] * 4, "block_height": 0.02,
+                   "platform_top": [float(centre[0]), float(centre[1]), top],
+                   "platform_half_size": d["platform_half_size"], "platform_yaw_deg": 0.0,
+                   "place_centre": coms_end[:, -1, :2]}
+    top, gaps = _lower_until_clear(task, _doc("platestandingtolying", design, provisional, {},
+                                              starts),
+                                   "plate", "platform_top", ("platform_top", "platform_support"),
+                                   d["clearance"])
+    place = _place_bounds(lows_end[:, -1], coms_end[:, -1], top)
     coms_end, lows_end = coms_end[:, -1], lows_end.min(1)
-    centre = coms_end[:, :2].mean(0)
     model, _ = _task_model("platestandingtolying")
-    block_half = model.geom_size[model.body_geomadr[
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "block1")]]
+    block_half = model.geom_size[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM,
+                                                   "rack_peg1")]
     bx = d["block_x"]
-    extent = _rack_gap(task, grasp, table_z, n_rack, bx + block_half[0])
+    # The blocks reach `block_rise` up the plate from its lowest point at the start.
+    block_height = float(rack_lows.max() + d["block_rise"] - table_z)
+    extent = _rack_gap(task, grasp, table_z + block_height, n_rack, bx + block_half[0])
     by_lo = extent[0] - d["block_clearance"] - block_half[1]
     by_hi = extent[1] + d["block_clearance"] + block_half[1]
     offsets = [[-bx, by_lo], [bx, by_lo], [-bx, by_hi], [bx, by_hi]]
     return {
-        "scene": {"table_z": table_z, "block_offsets": offsets,
+        "scene": {"table_z": table_z, "block_offsets": offsets, "block_height": block_height,
+                  "rack_base_thickness": d["rack_base_thickness"],
                   "platform_top": [float(centre[0]), float(centre[1]), top],
-                  "platform_half_size": d["platform_half_size"], "platform_yaw_deg": 0.0},
-        "derived": {"plate_rack_lowest_z": lows_rack.min(1), "plate_end_lowest_z": lows_end,
-                    "plate_end_centre": coms_end, "rack_plate_extent_y": extent},
+                  "platform_half_size": d["platform_half_size"], "platform_yaw_deg": 0.0,
+                  "place_centre": place["place_centre"]},
+        "success": place["success"],
+        "derived": {"start_lowest_z": rack_lows, "plate_end_lowest_z": lows_end,
+                    "plate_end_centre": coms_end, "platform_path_clearance": gaps,
+                    "rack_plate_extent_y": extent,
+                    **place["derived"]},
+        "comments": {"scene": {
+            "table_z": _TABLE_COMMENT,
+            "block_height": "the rack's pegs reach 2.4 cm (design) up every demo's plate "
+                            "from its lowest point at the start ([derived] start_lowest_z, "
+                            "max): the demos lift the rim ~3 cm before they move it sideways",
+            "block_offsets": "the rack's pegs (rack frame: x along the plate, y across it, "
+                             "origin under the plate's start centre): 1.5 cm clear of where the "
+                             "demos move the plate's rim below the blocks' top in their first "
+                             "fifth ([derived] rack_plate_extent_y)",
+            "platform_top": "under the mean of the plate's final centres, 1.5 cm under the "
+                            "lowest point of the plate in the demos' last fifth, and lower if "
+                            "needed until every demo's plate stays 1.5 cm clear of the "
+                            "platform on its way ([derived] platform_path_clearance)",
+            "place_centre": _PLACE_CENTRE_COMMENT},
+            "success": {
+            **place["comments"],
+            "max_rack_shift": "design: a rack moved more than this (m) at any step has been "
+                              "knocked",
+            "max_rack_tilt_deg": "design: a rack tilted more than this at any step has been "
+                                 "knocked"}},
     }
 
 
-def _rack_gap(task, grasp: dict[str, Any], table_z: float, n_samples: int,
+def _rack_gap(task, grasp: dict[str, Any], top: float, n_samples: int,
               x_half: float) -> np.ndarray:
     """[2] the extent (min, max) along the rack's y axis (the plate normal's horizontal
     direction, origin under the plate's start centre) of the plate's rim below the blocks' top
@@ -226,9 +441,6 @@ def _rack_gap(task, grasp: dict[str, Any], table_z: float, n_samples: int,
     disc = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate_disc")
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "plate")
     radius, half_t = model.geom_size[disc][:2]
-    block = model.geom_size[model.body_geomadr[
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "block1")]]
-    top = table_z + 2 * block[2]
     ang = np.linspace(0, 2 * np.pi, 72, endpoint=False)
     rim = np.concatenate([np.stack([radius * np.cos(ang), np.full_like(ang, side),
                                     radius * np.sin(ang)], axis=1) for side in (-half_t, half_t)])
@@ -265,7 +477,9 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
              "container_height": 0.003, "container_yaw_deg": 0.0, "n_beans": d["n_beans"],
              "bean_radius": d["bean_radius"], "bean_mass": d["bean_mass"],
              "cup_inner_radius": d["cup_inner_radius"], "cup_floor": d["cup_floor"]}
-    landing = _bean_landing(task, design, scene, starts)
+    doc = _doc("pouring", design, scene, {"min_fraction": 0.0, "max_spilled_fraction": 1.0},
+               starts)
+    landing = _bean_landing(task, doc)
     ok = np.isfinite(landing[..., 0])
     centre = np.median(landing[ok][:, :2], axis=0)
     spread = np.abs(landing[ok][:, :2] - centre).max(1)
@@ -273,47 +487,154 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
     half = float(np.ceil(max(half, d["min_half_size"]) / 0.005) * 0.005)
     scene.update({"container_floor": [float(centre[0]), float(centre[1]), 0.0],
                   "container_half_size": half, "container_height": rim})
+    # The demos poured into that container: where the beans come down through the rim's
+    # height, how many end inside, how many land outside.
+    doc = _doc("pouring", design, scene, {"min_fraction": 0.0, "max_spilled_fraction": 1.0},
+               starts)
+    infos, records = _replay_demos(task, doc, records=True)
+    n = int(d["n_beans"])
+    inside = np.array([round(i["bean_fraction"] * n) for i in infos])
+    spilled = np.array([round(i["spilled_fraction"] * n) for i in infos])
+    def poured_at(rec):
+        return rec["pour_sum"] / max(rec["pour_count"], 1)
+
+    pour = np.array([poured_at(r) for r in records])
+    scene["pour_centre"] = pour
+    # Replayed 2x slower and 1.5x faster (the same path): how much that moves it.
+    jitter = []
+    for factor in (2.0, 1.0 / 1.5):
+        _, recs = _replay_demos(task, doc, records=True, time_scale=factor)
+        jitter.append([float(np.linalg.norm(poured_at(r) - c))
+                       for r, c in zip(recs, pour, strict=True)])
+    jitter = np.asarray(jitter)
+    radius = max(POSITION_MARGIN, d["jitter_factor"] * float(jitter.max()))
     return {
         "scene": scene,
+        "success": {"min_fraction": float((inside.min() - 1) / n),
+                    "max_spilled_fraction": float((spilled.max() + 1) / n),
+                    "pour_radius": radius},
         "derived": {"cup_lowest_z": lows.min(1), "bean_landing_median": centre,
                     "bean_landing_spread_quantiles": np.quantile(spread, [0.5, 0.9, 0.95, 1.0]),
-                    "beans_landed": ok.sum(1)},
+                    "beans_landed": ok.sum(1), "beans_inside_demos": inside,
+                    "beans_spilled_demos": spilled, "pour_jitter_slower": jitter[0],
+                    "pour_jitter_faster": jitter[1]},
+        "comments": {
+            "scene": {"container_floor": (
+                "the container's centre on the table. Procedure: the demos replayed over a flat "
+                "tray; the median of where each bean first comes within 3 cm of the table "
+                "([derived] bean_landing_median)"),
+                "container_half_size": (
+                    "the 95 % quantile of the beans' landing distance from that centre "
+                    "(Chebyshev) + a bean radius + 1 cm, at least 5 cm, rounded up to 5 mm"),
+                "container_height": "its rim: 2 cm under the lowest point the cup reaches",
+                "pour_centre": "per demo j: where the cup's mouth is (world, m), on average, "
+                               "when demo j's beans leave the cup (the demos replayed into the "
+                               "container)"},
+            "success": {"min_fraction": (
+                "fraction of the beans that must be in the container at the end. Procedure: "
+                "the demos replayed into the container ([derived] beans_inside_demos): one "
+                "bean fewer than the worst demo"),
+                "max_spilled_fraction": (
+                    "fraction of the beans that may ever land outside the container (on the "
+                    "table, its rim, ...). Procedure: the demos replayed ([derived] "
+                    "beans_spilled_demos): one bean more than the worst demo"),
+                "pour_radius": (
+                    "the cup must be emptied within this distance (m) of where demo j empties "
+                    "it ([scene] pour_centre). Procedure: the 1.5 cm position margin, or 1.3 x "
+                    "the largest shift the demos replayed 2x slower and 1.5x faster (same path, "
+                    "the beans leave a little earlier or later) show ([derived] pour_jitter_*) "
+                    "if that is larger")},
+        },
     }
 
 
-def _bean_landing(task, design, scene, starts) -> np.ndarray:
+def _doc(task_name: str, design: dict[str, Any], scene: dict[str, Any],
+         success: dict[str, Any], starts: np.ndarray) -> dict[str, Any]:
+    """A provisional spec (for replaying the demos while deriving)."""
+    doc = {"task": {"name": task_name, **design["task"]}, "grasp": dict(design["grasp"]),
+           "scene": scene, "success": {**design["success"], **success},
+           "start": {"qpos": starts}}
+    if "solver" in design:
+        doc["solver"] = dict(design["solver"])
+    return doc
+
+
+def _demo_actions(env: RoboTaskEnv, task, j: int, settle_steps: int = 60) -> np.ndarray:
+    traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
+    actions = env.trajectory_to_actions(traj)
+    return np.concatenate([actions, env.settle_actions(actions[-1], settle_steps)])
+
+
+def _bean_landing(task, doc: dict[str, Any]) -> np.ndarray:
     """[N, n_beans, 3] where each bean first comes within 3 cm of the table when the demos are
-    replayed over a flat tray (NaN: never)."""
-    doc = {"task": {"name": "pouring", **design["task"]}, "grasp": dict(design["grasp"]),
-           "scene": scene, "success": dict(design["success"]),
-           "solver": dict(design.get("solver", {})), "start": {"qpos": starts}}
-    env = RoboTaskEnv("pouring", spec=doc)
+    replayed (NaN: never)."""
+    env = RoboTaskEnv("pouring", spec=doc, limits=None)
     n = len(task.positions)
     landing = np.full((n, env.scene.n_beans, 3), np.nan)
     for j in range(n):
-        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
-        actions = env.trajectory_to_actions(traj)
-        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        actions = _demo_actions(env, task, j)
         env.reset(options={"demo": j, "horizon": len(actions)})
         for a in actions:
             env.step(a)
             p = env.data.xpos[env.scene.bean_ids]
             new = (p[:, 2] < 0.03) & np.isnan(landing[j, :, 0])
             landing[j, new] = p[new]
+    env.close()
     return landing
+
+
+def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: float = 1.0):
+    """The env's final info of each demo replayed (trajectory + 1 s of settling) in the scene
+    of `doc` (no motion-limit checks: the scene alone), the demos' durations scaled by
+    `time_scale` (positions interpolated, orientations slerped). With `records`, also the
+    scene's episode records: (infos, records)."""
+    from clfd_bench.execution.perturb import resample
+
+    env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
+    infos, recs = [], []
+    for j in range(len(task.positions)):
+        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
+        if time_scale != 1.0:
+            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
+        actions = env.trajectory_to_actions(traj)
+        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        env.reset(options={"demo": j, "horizon": len(actions)})
+        for a in actions:
+            env.step(a)
+        infos.append(env.evaluate())
+        recs.append(env.scene.scene_state()["record"])
+    env.close()
+    return (infos, recs) if records else infos
 
 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring}
 
+#: Comments on design entries every spec has.
+_COMMON_COMMENTS = {
+    "grasp": {
+        "contact": "grip model (clfd_bench.sim.grasp): the contact the pads make with the prop; "
+                   "the grip breaks when the wrench on the prop exceeds its capacity",
+        "mu": "design: fingertip friction coefficient (stock Franka fingertips, 0.3-0.7 on "
+              "PET / ceramic / wood)",
+        "grip_force": "Franka Hand continuous grasp force, N (datasheet; 140 N peak)",
+        "filter_steps": "control steps (60 Hz) the grip's load ratio is averaged over",
+    },
+    "camera": {"lookat": "the middle of the demos' grasp points (bounding box)"},
+}
 
-def derive_spec(task_name: str, with_starts: bool = True) -> dict[str, dict[str, Any]]:
+
+def derive_spec(task_name: str, with_starts: bool = True,
+                comments: dict[str, dict[str, str]] | None = None
+                ) -> dict[str, dict[str, Any]]:
     """The spec of a RoboTasks task as {table: {key: value}}, from the dataset.
 
     Args:
         task_name: "openbox", "bottle2shelf", "platestandingtolying" or "pouring".
         with_starts: compute the start configurations (~20 s per task); False keeps those of
             the existing `tasks/<task>.toml`.
+        comments: if given, filled with {table: {key: how the value was derived}} for
+            `robotask_specs.dumps_task_spec`.
     """
     if task_name not in DESIGN:
         raise KeyError(f"no RoboTasks task {task_name!r}; valid: {sorted(DESIGN)}")
@@ -330,14 +651,29 @@ def derive_spec(task_name: str, with_starts: bool = True) -> dict[str, dict[str,
     derived = _DERIVE[task_name](task, design, starts)
     doc: dict[str, dict[str, Any]] = {
         "task": {"name": task_name, "dataset": "robotasks", **design["task"]},
-        "grasp": dict(design["grasp"]),
+        "grasp": {**design["grasp"], **derived.get("grasp", {})},
         "scene": dict(derived["scene"]),
-        "success": dict(design["success"]),
+        "success": {**design["success"], **derived.get("success", {})},
     }
     if "solver" in design:
         doc["solver"] = dict(design["solver"])
+    doc["camera"] = _camera(task, design)
     doc["derived"] = dict(derived["derived"])
+    # How the derived scene executes the demos (no motion-limit checks), for the record.
+    infos = _replay_demos(task, {**doc, "start": {"qpos": starts}})
+    doc["derived"]["demo_replay_success"] = [bool(i["is_success"]) for i in infos]
+    doc["derived"]["demo_replay_grip_load_max"] = [float(i["grip_load_max"]) for i in infos]
     doc["derived"]["start_method"] = methods
     doc["derived"]["start_forward_tracking_error_max"] = errors
     doc["start"] = {"qpos": starts}
+    if comments is not None:
+        for table, entries in _COMMON_COMMENTS.items():
+            comments.setdefault(table, {}).update(entries)
+        for table, entries in derived.get("comments", {}).items():
+            comments.setdefault(table, {}).update(entries)
+        comments.setdefault("derived", {}).update({
+            "demo_replay_success": "each demo replayed in this scene (+ 1 s settling, no "
+                                   "motion-limit checks): success",
+            "demo_replay_grip_load_max": "largest filtered load of the grip over that replay "
+                                         "(1 = its capacity)"})
     return doc

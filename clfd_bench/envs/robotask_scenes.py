@@ -1,32 +1,53 @@
-"""The four RoboTasks scenes: how props are placed for a demo and what counts as success.
+"""The four RoboTasks scenes: where the props are for a demo and what counts as success.
 
 Each scene reads its numbers from the task spec (`tasks/<task>.toml`, see
-`clfd_bench.envs.robotask_specs`), edits the composed `MjSpec` (poses and sizes the spec
+`clfd_bench.envs.robotask_specs`), edits the composed `MjSpec` (table, poses and sizes the spec
 derives from the demonstrations), places the props at `reset` for demo j (the held prop at the
-grasp point, the rest where demo j needs it) and decides success from the physical state.
+grasp point, the rest where demo j needs it), follows the episode step by step (`track`) and
+decides success from what happened in the whole episode, as an observer would, not from the
+end state alone:
 
-| task | held prop (grasp) | success |
-|---|---|---|
-| openbox | lid handle (connect) | lid hinge angle >= `min_lid_angle_deg` |
-| bottle2shelf | bottle (weld) | released bottle lying on the shelf |
-| platestandingtolying | plate (weld) | released plate lying on the platform, rack blocks in place |
-| pouring | cup (weld) | >= `min_fraction` of the beans inside the container |
+- openbox (held: the lid's edge, welded; it may slide and turn in the fingers as far as the
+  demos do): the grasp opens the lid to >= `min_open_angle_deg` (demo j's own) while holding
+  it, the gripper then lets go (the lid never slipped out), and the lid is still open at the
+  end;
+- bottle2shelf (held: the bottle, welded): held until the gripper opens; at that moment its
+  lowest point is at most `max_release_height` above the shelf and its centre within
+  `place_radius` of where demo j lets it go; at the end it lies on the shelf;
+- platestandingtolying (held: the plate): as the bottle, on the platform; and the dish rack is
+  never (at any step) moved more than `max_rack_shift` or tilted more than
+  `max_rack_tilt_deg`;
+- pouring (held: the cup, never let go): the cup never slips; it is emptied where demo j
+  empties it (where its mouth is, on average, as the beans leave it: within `pour_radius` of
+  demo j's); >= `min_fraction` of the beans are in the container at the end and at most
+  `max_spilled_fraction` ever landed outside it (on the table, the container's rim, ...).
 
-Success is decided from the state alone (no history besides the blocks' start positions), so it
-can be evaluated at any step; `clfd_bench.execution.rollout.rollout` evaluates it after the
-trajectory and the settling time.
+Every scene stands on a table (`[scene] table_z`, the height of its top in the robot base frame;
+the robot stands on it, on a mount when the table is lower than the robot's base). The table top
+is a collision plane (the Menagerie floor, moved and hidden in geom group 3) drawn as a wooden
+top on four legs above the room's floor.
+
+`success` only reads the records `track` keeps, so it is cheap at every step.
+`clfd_bench.execution.rollout.rollout` decides after the trajectory and the settling time.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from clfd_bench.sim.grasp import Grasp, GraspSpec
+from clfd_bench.sim.grasp import Grasp, GraspSpec, grip_capacity
 from clfd_bench.sim.robot import GRASP_SITE
+from clfd_bench.sim.scene_fit import lowest_point
+
+#: Height of the table top above the room's floor (m): a standard 0.75 m table.
+TABLE_HEIGHT = 0.75
+#: Table top extent (x0, x1, y0, y1) in the robot base frame (m) when the spec gives none.
+DEFAULT_TABLE_XY = (-0.3, 0.9, -1.0, 0.45)
 
 
 def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
@@ -77,6 +98,66 @@ def _support(spec: mujoco.MjSpec, body: str, top: list[float], half_xy: list[flo
     spec.geom(column).pos = [0.0, 0.0, -0.02 - half_h]
 
 
+def _visual_box(parent: mujoco.MjsBody, name: str, size, pos, rgba) -> None:
+    g = parent.add_geom()
+    g.name = name
+    g.type = mujoco.mjtGeom.mjGEOM_BOX
+    g.size = list(size)
+    g.pos = list(pos)
+    g.rgba = list(rgba)
+    g.contype = g.conaffinity = 0
+    g.mass = 0.0
+
+
+def add_table(spec: mujoco.MjSpec, table_z: float,
+              xy: tuple[float, float, float, float] = DEFAULT_TABLE_XY) -> None:
+    """Makes the Menagerie floor the table's collision surface at `table_z` (hidden, geom group
+    3) and draws a table (top, legs), the room's floor `TABLE_HEIGHT` below it, and a mount
+    under the robot when the table is lower than the robot's base."""
+    floor = spec.geom("floor")
+    floor.pos = [0.0, 0.0, table_z]
+    floor.group = 3
+    x0, x1, y0, y1 = xy
+    cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
+    world = spec.worldbody
+    _visual_box(world, "table_top", [hx, hy, 0.02], [cx, cy, table_z - 0.02],
+                [0.62, 0.47, 0.33, 1.0])
+    leg_h = (TABLE_HEIGHT - 0.04) / 2
+    for i, (sx, sy) in enumerate([(-1, -1), (-1, 1), (1, -1), (1, 1)]):
+        _visual_box(world, f"table_leg{i}", [0.03, 0.03, leg_h],
+                    [cx + sx * (hx - 0.06), cy + sy * (hy - 0.06), table_z - 0.04 - leg_h],
+                    [0.45, 0.33, 0.22, 1.0])
+    room = world.add_geom()
+    room.name = "room_floor"
+    room.type = mujoco.mjtGeom.mjGEOM_PLANE
+    room.size = [0.0, 0.0, 0.05]
+    room.pos = [0.0, 0.0, table_z - TABLE_HEIGHT]
+    room.material = "groundplane"
+    room.contype = room.conaffinity = 0
+    if table_z < 0.0:
+        _visual_box(world, "robot_mount", [0.13, 0.13, -table_z / 2],
+                    [-0.04, 0.0, table_z / 2], [0.3, 0.3, 0.32, 1.0])
+
+
+def apply_solver_options(spec: mujoco.MjSpec, opt: dict[str, Any]) -> None:
+    """Applies a spec's `[solver]` table: `solver` ("newton", "cg", "pgs"), `iterations`,
+    `ls_iterations`, `tolerance`, `cone` ("pyramidal", "elliptic"). (MuJoCo's island sleeping
+    would make a resting rack cheaper, but which bodies sleep is not part of the
+    physics state `mj_getState` saves, so a pickled env would not continue exactly.)"""
+    if not opt:
+        return
+    if "solver" in opt:
+        spec.option.solver = getattr(mujoco.mjtSolver, f"mjSOL_{opt['solver'].upper()}")
+    if "iterations" in opt:
+        spec.option.iterations = int(opt["iterations"])
+    if "ls_iterations" in opt:
+        spec.option.ls_iterations = int(opt["ls_iterations"])
+    if "tolerance" in opt:
+        spec.option.tolerance = float(opt["tolerance"])
+    if opt.get("cone"):
+        spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{opt['cone'].upper()}")
+
+
 class Scene:
     """Base of the RoboTasks scenes (one instance per env).
 
@@ -86,33 +167,22 @@ class Scene:
 
     #: names of the bodies reported in the observation's `objects` [K, 7] (pos, quat).
     object_bodies: tuple[str, ...] = ()
+    #: success needs the prop let go (by opening the gripper) first.
+    needs_release = True
 
     def __init__(self, doc: dict[str, Any]):
         self.doc = doc
         self.scene = doc["scene"]
         self.success_cfg = doc["success"]
-        g = doc["grasp"]
-        self.grasp_spec = GraspSpec(
-            kind=g["kind"], body=g["body"], solref=tuple(g.get("solref", (0.01, 1.0))),
-            max_slip=float(g.get("max_slip", 0.03)),
-            max_slip_angle=float(np.radians(g.get("max_slip_angle_deg", 30.0))),
-            closed_opening=float(g.get("closed_opening", 0.0)),
-            exclude=tuple(g.get("exclude", ())),
-            prop_pos=tuple(float(v) for v in g.get("prop_pos", (0.0, 0.0, 0.0))),
-            prop_quat=tuple(float(v) for v in g.get("prop_quat", (1.0, 0.0, 0.0, 0.0))))
+        self.grasp_spec = grasp_spec_from(doc["grasp"])
         self.table_z = float(self.scene.get("table_z", 0.0))
+        self.record: dict[str, Any] = {}
+        self.demo = 0
 
     # -- composition
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
-        if self.table_z != 0.0:
-            spec.geom("floor").pos = [0.0, 0.0, self.table_z]
-            ped = spec.worldbody.add_geom()
-            ped.name = "pedestal"
-            ped.type = mujoco.mjtGeom.mjGEOM_CYLINDER
-            ped.size = [0.11, -self.table_z / 2, 0.0]
-            ped.pos = [-0.04, 0.0, self.table_z / 2]
-            ped.rgba = [0.3, 0.3, 0.32, 1.0]
-            ped.contype = ped.conaffinity = 0
+        add_table(spec, self.table_z, tuple(self.scene.get("table_xy", DEFAULT_TABLE_XY)))
+        apply_solver_options(spec, self.doc.get("solver", {}))
 
     def bind(self, model: mujoco.MjModel) -> None:
         self.model = model
@@ -130,16 +200,30 @@ class Scene:
         """Places the props for `demo` (robot already placed, kinematics current)."""
         raise NotImplementedError
 
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        """Starts the episode's record (after `reset` and the grasp's `attach`)."""
+        self.record = {}
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        """Updates the episode's record after a control step's physics."""
+
+    def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        """Records the moment the prop is let go (`grasp.release_reason` says why)."""
+
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
-        """(success, task info) from the current physical state."""
+        """(success, task info) from the episode's record and the current state."""
         raise NotImplementedError
 
     def scene_state(self) -> dict[str, Any]:
         """Episode state beyond the physics state (for pickling)."""
-        return {}
+        return {"demo": self.demo,
+                "record": {k: (v.copy() if isinstance(v, np.ndarray) else v)
+                           for k, v in self.record.items()}}
 
     def restore_scene_state(self, state: dict[str, Any]) -> None:
-        pass
+        self.demo = int(state.get("demo", 0))
+        self.record = {k: (v.copy() if isinstance(v, np.ndarray) else v)
+                       for k, v in state.get("record", {}).items()}
 
     def observation_space(self) -> dict[str, spaces.Space]:
         return {"objects": spaces.Box(-np.inf, np.inf, (len(self.object_bodies), 7), np.float64)}
@@ -149,11 +233,33 @@ class Scene:
         return {"objects": np.concatenate([data.xpos[ids], data.xquat[ids]], axis=1)}
 
 
+def grasp_spec_from(g: dict[str, Any]) -> GraspSpec:
+    """The `GraspSpec` of a spec's `[grasp]` table (grip: `contact`, `mu`, `grip_force`,
+    `contact_radius`; compliant directions: `slip_joints` = [[name, lower, upper], ...])."""
+    capacity = None
+    if g.get("contact"):
+        capacity = grip_capacity(g["contact"], mu=float(g.get("mu", 0.5)),
+                                 grip_force=float(g.get("grip_force", 70.0)),
+                                 radius=float(g.get("contact_radius", 0.0)))
+    return GraspSpec(
+        kind=g["kind"], body=g["body"], solref=tuple(g.get("solref", (0.01, 1.0))),
+        capacity=capacity, filter_steps=int(g.get("filter_steps", 3)),
+        max_slip=float(g.get("max_slip", 0.03)),
+        max_slip_angle=float(np.radians(g.get("max_slip_angle_deg", 30.0))),
+        slip_joints=tuple((str(n), float(lo), float(hi)) for n, lo, hi in
+                          g.get("slip_joints", ())),
+        closed_opening=float(g.get("closed_opening", 0.0)),
+        exclude=tuple(g.get("exclude", ())),
+        prop_pos=tuple(float(v) for v in g.get("prop_pos", (0.0, 0.0, 0.0))),
+        prop_quat=tuple(float(v) for v in g.get("prop_quat", (1.0, 0.0, 0.0, 0.0))))
+
+
 class OpenBoxScene(Scene):
-    """A box with a hinged lid (no hinge friction; a lip on its front edge puts its balance at
-    93.2 deg: past it the lid falls open onto its 120 deg stop, below it shut). The gripper
-    holds the lid's handle, which slides on the lid, so only the hinge angle follows the
-    hand. Placed by `[scene] hinge_pos`, `hinge_yaw_deg` (the fitted hinge axis)."""
+    """A storage box whose lid turns on friction hinges (it stays where it is left). The gripper
+    pinches the lid's front edge (`lid_handle`, welded to the hand): the edge may slide in the
+    fingers (radially and along the hinge) and turn between them as far as the demonstrations
+    need (`[grasp] slip_joints`), no further: past that it slips out. Placed by `[scene]
+    hinge_pos`, `hinge_yaw_deg` (the hinge axis fitted to the demos' arcs)."""
 
     object_bodies = ("lid", "lid_handle")
 
@@ -166,9 +272,10 @@ class OpenBoxScene(Scene):
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
         self.box = _id(model, mujoco.mjtObj.mjOBJ_BODY, "box")
+        self.lid = _id(model, mujoco.mjtObj.mjOBJ_BODY, "lid")
         self.handle = _id(model, mujoco.mjtObj.mjOBJ_BODY, "lid_handle")
         j = {n: _id(model, mujoco.mjtObj.mjOBJ_JOINT, n)
-             for n in ("lid_hinge", "handle_axial", "handle_radial")}
+             for n in ("lid_hinge", "handle_axial", "handle_radial", "handle_turn")}
         self.qadr = {n: int(model.jnt_qposadr[i]) for n, i in j.items()}
         self.jrange = {n: model.jnt_range[i].copy() for n, i in j.items()}
         self.handle_rest = model.body_pos[self.handle].copy()  # in the lid frame: (x, r, h)
@@ -178,33 +285,112 @@ class OpenBoxScene(Scene):
         return float(np.degrees(data.qpos[self.qadr["lid_hinge"]]))
 
     def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
-        # The grasp point in the hinge frame decides the lid angle and the handle's slides.
+        # The grasp point in the hinge frame decides the lid angle and the edge's place in the
+        # fingers (the handle's slides); the handle takes the hand's orientation (ball joint).
         rot = data.xmat[self.box].reshape(3, 3)
         local = rot.T @ (data.site_xpos[self.grasp_site] - data.xpos[self.box])
         x0, r0, h = self.handle_rest
         rho2 = local[1] ** 2 + local[2] ** 2
         r = float(np.sqrt(max(rho2 - h * h, 1e-12)))
         angle = float(np.arctan2(local[2], local[1]) - np.arctan2(h, r))
-        values = {"lid_hinge": angle, "handle_radial": r - r0, "handle_axial": local[0] - x0}
-        for name, v in values.items():
-            lo, hi = self.jrange[name]
-            if not lo <= v <= hi:
-                raise ValueError(f"demo {demo}'s start puts the gripper outside the lid handle's "
-                                 f"range ({name} = {v:.4f}, range [{lo}, {hi}]): the openbox "
-                                 "scene does not fit this demo; regenerate tasks/openbox.toml")
-            data.qpos[self.qadr[name]] = v
+        lo, hi = self.jrange["lid_hinge"]
+        if not lo <= angle <= hi:
+            raise ValueError(f"demo {demo}'s start puts the gripper at lid angle "
+                             f"{np.degrees(angle):.1f} deg, outside the hinge's range: the openbox "
+                             "scene does not fit this demo; regenerate tasks/openbox.toml")
+        data.qpos[self.qadr["lid_hinge"]] = angle
+        data.qpos[self.qadr["handle_radial"]] = r - r0
+        data.qpos[self.qadr["handle_axial"]] = local[0] - x0
+        mujoco.mj_kinematics(self.model, data)
+        lid_q = data.xquat[self.lid]
+        hand_q = data.xquat[grasp.hand_id]
+        turn = np.empty(4)
+        inv = np.empty(4)
+        mujoco.mju_negQuat(inv, lid_q)
+        mujoco.mju_mulQuat(turn, inv, hand_q)
+        adr = self.qadr["handle_turn"]
+        data.qpos[adr:adr + 4] = turn / np.linalg.norm(turn)
+        self.demo = demo
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        angle = self.lid_angle(data)
+        need = np.atleast_1d(np.asarray(self.success_cfg["min_open_angle_deg"], dtype=float))
+        self.record = {"max_held_angle": angle, "release_angle": None,
+                       "need": float(need[self.demo if len(need) > 1 else 0])}
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        if grasp.held(data):
+            angle = self.lid_angle(data)
+            if angle > self.record["max_held_angle"]:
+                self.record["max_held_angle"] = angle
+
+    def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.record["release_angle"] = self.lid_angle(data)
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
         angle = self.lid_angle(data)
-        ok = angle >= float(self.success_cfg["min_lid_angle_deg"])
-        return ok, {"lid_angle_deg": angle}
+        need = self.record["need"]
+        opened = self.record["max_held_angle"] >= need
+        stays = angle >= need - float(c["stay_open_tolerance_deg"])
+        let_go = grasp.release_reason == "opened"
+        ok = bool(opened and stays and let_go)
+        return ok, {"lid_angle_deg": angle, "lid_max_held_angle_deg":
+                    float(self.record["max_held_angle"]), "lid_open_needed_deg": need,
+                    "lid_opened_by_grasp": bool(opened)}
 
 
-class BottleScene(Scene):
-    """A bottle held upright by its neck; a shelf where the demos end. Success: the bottle,
-    released, lies (axis within `max_tilt_deg` of horizontal) on the shelf's top."""
+class _PlaceScene(Scene):
+    """A held prop laid on a support (shelf, platform): the release and the end state count."""
+
+    prop = ""
+    support = ""
+    support_half_key = ""
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.prop_id = _id(model, mujoco.mjtObj.mjOBJ_BODY, self.prop)
+        self.support_id = _id(model, mujoco.mjtObj.mjOBJ_BODY, self.support)
+
+    def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] the prop's centre (what `place_radius` is measured on)."""
+        return data.xipos[self.prop_id]
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.record = {"release_height": None, "release_offset": None}
+
+    def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        mujoco.mj_kinematics(self.model, data)
+        top = data.xpos[self.support_id][2]
+        self.record["release_height"] = lowest_point(self.model, data, self.prop) - float(top)
+        centre = np.asarray(self.scene["place_centre"], dtype=float).reshape(-1, 2)
+        centre = centre[self.demo if len(centre) > 1 else 0]
+        self.record["release_offset"] = float(np.linalg.norm(self.prop_centre(data)[:2]
+                                                             - centre))
+
+    def _placed(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        h, off = self.record["release_height"], self.record["release_offset"]
+        let_go = grasp.release_reason == "opened"
+        low = h is not None and h <= float(c["max_release_height"])
+        near = off is not None and off <= float(c["place_radius"])
+        return bool(let_go and low and near), {
+            "release_height": None if h is None else float(h),
+            "release_offset": None if off is None else float(off)}
+
+    def _on_support(self, data: mujoco.MjData, point: np.ndarray) -> tuple[bool, float]:
+        rot = data.xmat[self.support_id].reshape(3, 3)
+        local = rot.T @ (point - data.xpos[self.support_id])
+        half = self.scene[self.support_half_key]
+        return bool(abs(local[0]) <= half[0] and abs(local[1]) <= half[1]), float(local[2])
+
+
+class BottleScene(_PlaceScene):
+    """A bottle held upright by its neck; a shelf where the demos end. Success: see the module
+    docstring (released by opening, low and where the demos release it; lying on the shelf)."""
 
     object_bodies = ("bottle",)
+    prop, support, support_half_key = "bottle", "shelf", "shelf_half_size"
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
@@ -213,37 +399,31 @@ class BottleScene(Scene):
                  np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
                  "shelf_support")
 
-    def bind(self, model: mujoco.MjModel) -> None:
-        super().bind(model)
-        self.bottle = _id(model, mujoco.mjtObj.mjOBJ_BODY, "bottle")
-        self.shelf = _id(model, mujoco.mjtObj.mjOBJ_BODY, "shelf")
-
     def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
         self.place_held_prop(data, grasp)
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
-        rot = data.xmat[self.shelf].reshape(3, 3)
-        com = rot.T @ (data.xipos[self.bottle] - data.xpos[self.shelf])
-        half = self.scene["shelf_half_size"]
-        on_top = abs(com[0]) <= half[0] and abs(com[1]) <= half[1]
-        height = float(com[2])
-        axis = data.xmat[self.bottle].reshape(3, 3)[:, 2]
+        placed, info = self._placed(data, grasp)
+        on_top, height = self._on_support(data, data.xipos[self.prop_id])
+        axis = data.xmat[self.prop_id].reshape(3, 3)[:, 2]
         tilt = 90.0 - _tilt_from_vertical(axis)  # from horizontal
         lying = tilt <= float(c["max_tilt_deg"])
         resting = float(c["min_height"]) <= height <= float(c["max_height"])
-        released = not grasp.held(data)
-        ok = bool(released and on_top and lying and resting)
-        return ok, {"bottle_tilt_deg": tilt, "bottle_height": height, "on_shelf": bool(on_top)}
+        ok = bool(placed and on_top and lying and resting and not grasp.held(data))
+        info.update({"bottle_tilt_deg": tilt, "bottle_height": height, "on_shelf": on_top})
+        return ok, info
 
 
-class PlateScene(Scene):
-    """A plate standing in a rack of four blocks; a platform where the demos end. Success: the
-    plate, released, lies (normal within `max_tilt_deg` of vertical) on the platform, and
-    every block is within `max_block_shift` of where it started and upright."""
+class PlateScene(_PlaceScene):
+    """A plate standing in a dish rack (a base with four pegs, one free body); a platform where
+    the demos end. Success: see the module docstring (the rack never knocked; released by
+    opening, low and where the demos release it; lying on the platform)."""
 
-    blocks = ("block1", "block2", "block3", "block4")
-    object_bodies = ("plate",) + blocks
+    object_bodies = ("plate", "rack")
+    prop, support, support_half_key = "plate", "platform", "platform_half_size"
+    pegs = ("rack_peg1", "rack_peg2", "rack_peg3", "rack_peg4")
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
@@ -251,66 +431,93 @@ class PlateScene(Scene):
         _support(spec, "platform", s["platform_top"], s["platform_half_size"],
                  np.radians(s.get("platform_yaw_deg", 0.0)), self.table_z, "platform_top",
                  "platform_support")
+        # The rack (rack frame: origin on the table under the plate's centre): pegs at
+        # `block_offsets`, from the base up to `block_height` above the table; the base spans
+        # the pegs' footprint.
+        t = float(s.get("rack_base_thickness", 0.005))
+        height = float(s.get("block_height", 0.024))
+        offsets = np.asarray(s["block_offsets"], dtype=float)
+        peg = spec.geom(self.pegs[0]).size
+        for name, (x, y) in zip(self.pegs, offsets, strict=True):
+            g = spec.geom(name)
+            g.size = [peg[0], peg[1], (height - t) / 2]
+            g.pos = [float(x), float(y), t + (height - t) / 2]
+        lo, hi = offsets.min(0) - [peg[0], peg[1]], offsets.max(0) + [peg[0], peg[1]]
+        base = spec.geom("rack_base")
+        base.size = [float(hi[0] - lo[0]) / 2, float(hi[1] - lo[1]) / 2, t / 2]
+        base.pos = [float(hi[0] + lo[0]) / 2, float(hi[1] + lo[1]) / 2, t / 2]
 
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
-        self.plate = _id(model, mujoco.mjtObj.mjOBJ_BODY, "plate")
         self.disc = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate_disc")
-        self.platform = _id(model, mujoco.mjtObj.mjOBJ_BODY, "platform")
-        self.block_ids = [_id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in self.blocks]
-        gid = model.body_geomadr[self.block_ids[0]]
-        self.block_half_h = float(model.geom_size[gid][2])
-        self.block_start = np.zeros((len(self.blocks), 3))
+        self.rack = _id(model, mujoco.mjtObj.mjOBJ_BODY, "rack")
+        self.rack_start = np.zeros(3)
+
+    def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
+        return data.geom_xpos[self.disc]
 
     def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
         self.place_held_prop(data, grasp)
         mujoco.mj_kinematics(self.model, data)
         # The rack stands on the table under the plate, turned with the plate's plane.
         centre = data.geom_xpos[self.disc]
-        in_plane = data.xmat[self.plate].reshape(3, 3)[:, 0]
+        in_plane = data.xmat[grasp.body_id].reshape(3, 3)[:, 0]
         yaw = float(np.arctan2(in_plane[1], in_plane[0]))
-        c, s = np.cos(yaw), np.sin(yaw)
-        rack = np.array([[c, -s], [s, c]])
-        for k, (b, off) in enumerate(zip(self.block_ids, self.scene["block_offsets"],
-                                         strict=True)):
-            xy = centre[:2] + rack @ np.asarray(off, dtype=float)
-            pos = np.array([xy[0], xy[1], self.table_z + self.block_half_h])
-            set_free_pose(self.model, data, b, pos, _yaw_quat(yaw))
-            self.block_start[k] = pos
+        pos = np.array([centre[0], centre[1], self.table_z])
+        set_free_pose(self.model, data, self.rack, pos, _yaw_quat(yaw))
+        self.rack_start = pos
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        super().start_record(data, grasp)
+        self.record.update({"max_rack_shift": 0.0, "max_rack_tilt_deg": 0.0})
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        p, s0 = data.xpos[self.rack], self.rack_start
+        shift = math.sqrt((p[0] - s0[0]) ** 2 + (p[1] - s0[1]) ** 2 + (p[2] - s0[2]) ** 2)
+        cos_tilt = abs(float(data.xmat[self.rack, 8]))  # the rack's z axis' world z component
+        rec = self.record
+        if shift > rec["max_rack_shift"]:
+            rec["max_rack_shift"] = shift
+        tilt = math.degrees(math.acos(min(1.0, cos_tilt)))
+        if tilt > rec["max_rack_tilt_deg"]:
+            rec["max_rack_tilt_deg"] = tilt
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
-        rot = data.xmat[self.platform].reshape(3, 3)
-        centre = rot.T @ (data.geom_xpos[self.disc] - data.xpos[self.platform])
-        half = self.scene["platform_half_size"]
-        on_top = abs(centre[0]) <= half[0] and abs(centre[1]) <= half[1]
-        height = float(centre[2])
-        normal = data.xmat[self.plate].reshape(3, 3)[:, 1]
+        placed, info = self._placed(data, grasp)
+        on_top, height = self._on_support(data, data.geom_xpos[self.disc])
+        normal = data.xmat[grasp.body_id].reshape(3, 3)[:, 1]
         tilt = _tilt_from_vertical(normal)
         lying = tilt <= float(c["max_tilt_deg"])
         resting = float(c["min_height"]) <= height <= float(c["max_height"])
-        shifts = np.linalg.norm(data.xpos[self.block_ids] - self.block_start, axis=1)
-        block_tilts = [_tilt_from_vertical(data.xmat[b].reshape(3, 3)[:, 2])
-                       for b in self.block_ids]
-        blocks_ok = bool(shifts.max() <= float(c["max_block_shift"])
-                         and max(block_tilts) <= float(c["max_block_tilt_deg"]))
-        released = not grasp.held(data)
-        ok = bool(released and on_top and lying and resting and blocks_ok)
-        return ok, {"plate_tilt_deg": tilt, "plate_height": height, "on_platform": bool(on_top),
-                    "max_block_shift": float(shifts.max()), "blocks_in_place": blocks_ok}
+        rec = self.record
+        rack_ok = bool(rec["max_rack_shift"] <= float(c["max_rack_shift"])
+                       and rec["max_rack_tilt_deg"] <= float(c["max_rack_tilt_deg"]))
+        ok = bool(placed and on_top and lying and resting and rack_ok and not grasp.held(data))
+        info.update({"plate_tilt_deg": tilt, "plate_height": height, "on_platform": on_top,
+                     "max_rack_shift": float(rec["max_rack_shift"]),
+                     "max_rack_tilt_deg": float(rec["max_rack_tilt_deg"]),
+                     "rack_in_place": rack_ok})
+        return ok, info
 
     def scene_state(self) -> dict[str, Any]:
-        return {"block_start": self.block_start.copy()}
+        state = super().scene_state()
+        state["rack_start"] = self.rack_start.copy()
+        return state
 
     def restore_scene_state(self, state: dict[str, Any]) -> None:
-        self.block_start = np.asarray(state["block_start"], dtype=float).copy()
+        super().restore_scene_state(state)
+        self.rack_start = np.asarray(state["rack_start"], dtype=float).copy()
 
 
 class PouringScene(Scene):
-    """A cup holding `n_beans` free spheres; a square container where the demos pour. Success:
-    at least `min_fraction` of the beans end inside the container."""
+    """A cup holding `n_beans` beans (free spheres); a square container where the demos pour.
+    Success: see the module docstring (the cup never slips; enough beans in the container,
+    few ever landed outside it)."""
 
     object_bodies = ("cup",)
+    needs_release = False
 
     def __init__(self, doc: dict[str, Any]):
         super().__init__(doc)
@@ -325,7 +532,7 @@ class PouringScene(Scene):
         super().edit_spec(spec)
         s = self.scene
         cont = spec.body("container")
-        cont.pos = list(s["container_floor"])
+        cont.pos = [s["container_floor"][0], s["container_floor"][1], self.table_z]
         cont.quat = list(_yaw_quat(np.radians(s.get("container_yaw_deg", 0.0))))
         a, h, t = float(s["container_half_size"]), float(s["container_height"]), 0.005
         floor = spec.geom("container_floor")
@@ -338,14 +545,6 @@ class PouringScene(Scene):
             g.size = [sx, sy, h / 2]
             g.pos = [px, py, h / 2]
             g.rgba = [0.45, 0.45, 0.5, 1.0]
-        opt = self.doc.get("solver", {})
-        if opt:
-            spec.option.solver = getattr(mujoco.mjtSolver, f"mjSOL_{opt['solver'].upper()}")
-            spec.option.iterations = int(opt["iterations"])
-            spec.option.ls_iterations = int(opt.get("ls_iterations", 10))
-            spec.option.tolerance = float(opt.get("tolerance", 1e-8))
-            if opt.get("cone"):
-                spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{opt['cone'].upper()}")
         for name in self.bean_names:
             b = spec.worldbody.add_body()
             b.name = name
@@ -357,6 +556,7 @@ class PouringScene(Scene):
             g.mass = float(s.get("bean_mass", 0.002))
             g.rgba = [0.35, 0.2, 0.1, 1.0]
             g.friction = [0.6, 0.005, 0.0001]
+            g.condim = int(s.get("bean_condim", 3))
 
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
@@ -365,6 +565,20 @@ class PouringScene(Scene):
         self.bean_ids = np.array([_id(model, mujoco.mjtObj.mjOBJ_BODY, n)
                                   for n in self.bean_names])
         self.bean_local = self._bean_layout()
+        # The container is static: its pose in the compiled model.
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        self._cont_pos = data.xpos[self.container].copy()
+        self._cont_rot = data.xmat[self.container].reshape(3, 3).copy()
+        self._half = float(self.scene["container_half_size"])
+        self._height = float(self.scene["container_height"])
+        self._outer = self._half + 0.01  # + the walls' thickness
+        self._level = self._height + self.bean_radius
+        self._pour_centres = np.asarray(self.scene.get("pour_centre", [[0.0, 0.0, 0.0]]),
+                                        dtype=float).reshape(-1, 3)
+        #: the cup's mouth along its axis, and how far out of its axis a bean is out of it.
+        self._mouth = float(self.scene.get("cup_mouth", 0.05))
+        self._cup_outer = float(self.scene.get("cup_inner_radius", 0.036)) + 0.01
 
     def _bean_layout(self) -> np.ndarray:
         """[n_beans, 3] bean centres in the cup frame: close-packed hexagonal layers from the
@@ -389,26 +603,80 @@ class PouringScene(Scene):
             layer += 1
         return np.array(pts[: self.n_beans])
 
-    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+    def _place_beans(self, data: mujoco.MjData, grasp: Grasp) -> None:
         self.place_held_prop(data, grasp)
         mujoco.mj_kinematics(self.model, data)
         cup_pos = data.xpos[self.cup]
         cup_rot = data.xmat[self.cup].reshape(3, 3)
         for b, local in zip(self.bean_ids, self.bean_local, strict=True):
-            set_free_pose(self.model, data, b, cup_pos + cup_rot @ local, np.array([1.0, 0, 0, 0]))
+            set_free_pose(self.model, data, int(b), cup_pos + cup_rot @ local,
+                          np.array([1.0, 0, 0, 0]))
+
+    def _bean_local(self, data: mujoco.MjData) -> np.ndarray:
+        """[n_beans, 3] bean centres in the container frame (static: its pose is the model's)."""
+        return (data.xpos[self.bean_ids] - self._cont_pos) @ self._cont_rot
 
     def bean_fraction(self, data: mujoco.MjData) -> float:
         """Fraction of beans inside the container (below its rim, within its walls)."""
-        rot = data.xmat[self.container].reshape(3, 3)
-        local = (data.xpos[self.bean_ids] - data.xpos[self.container]) @ rot
-        a, h = float(self.scene["container_half_size"]), float(self.scene["container_height"])
+        local = self._bean_local(data)
+        a, h = self._half, self._height
         inside = ((np.abs(local[:, 0]) <= a) & (np.abs(local[:, 1]) <= a)
                   & (local[:, 2] >= -0.01) & (local[:, 2] <= h))
-        return float(inside.mean())
+        return float(np.count_nonzero(inside)) / self.n_beans
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
+        self._place_beans(data, grasp)
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.record = {"spilled": np.zeros(self.n_beans, dtype=bool),
+                       "left": np.zeros(self.n_beans, dtype=bool),
+                       "pour_sum": np.zeros(3), "pour_count": 0}
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        """A bean has landed outside once it is below the container's rim outside its walls'
+        outer faces (on the table, on the rim, on the floor...). When a bean leaves the cup
+        (past its mouth or its wall), where the cup's mouth is then is where it was poured."""
+        local = self._bean_local(data)
+        rec = self.record
+        below = local[:, 2] < self._level
+        if below.any():
+            rec["spilled"] |= below & ((np.abs(local[:, 0]) > self._outer)
+                                       | (np.abs(local[:, 1]) > self._outer))
+        left = rec["left"]
+        if not left.all():
+            rot = data.xmat[self.cup].reshape(3, 3)
+            in_cup = (data.xpos[self.bean_ids] - data.xpos[self.cup]) @ rot
+            out = ((in_cup[:, 2] > self._mouth)
+                   | (np.hypot(in_cup[:, 0], in_cup[:, 1]) > self._cup_outer)) & ~left
+            if out.any():
+                mouth = data.xpos[self.cup] + self._mouth * rot[:, 2]
+                k = int(np.count_nonzero(out))
+                rec["pour_sum"] = rec["pour_sum"] + k * mouth
+                rec["pour_count"] += k
+                left |= out
+
+    def pour_offset(self) -> float | None:
+        """Distance (m) between where the cup's mouth was, on average, when its beans left it and
+        where it was when demo j's did (None: no bean has left the cup)."""
+        count = self.record["pour_count"]
+        if count == 0:
+            return None
+        ref = self._pour_centres[self.demo if len(self._pour_centres) > 1 else 0]
+        return float(np.linalg.norm(self.record["pour_sum"] / count - ref))
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
         frac = self.bean_fraction(data)
-        return frac >= float(self.success_cfg["min_fraction"]), {"bean_fraction": frac}
+        spilled = float(self.record["spilled"].mean())
+        held = grasp.release_reason != "slipped"
+        offset = self.pour_offset() if "pour_centre" in self.scene else 0.0
+        where = offset is not None and offset <= float(c.get("pour_radius", np.inf))
+        eps = 1e-9  # the spec's fractions are rounded to 10 digits
+        ok = (frac >= float(c["min_fraction"]) - eps
+              and spilled <= float(c["max_spilled_fraction"]) + eps and held and where)
+        return bool(ok), {"bean_fraction": frac, "spilled_fraction": spilled,
+                          "pour_offset": offset}
 
 
 SCENES: dict[str, type[Scene]] = {

@@ -7,8 +7,10 @@ A spec holds what the env needs beyond the scene MJCF (`tasks/<task>.xml`):
   props, the prop's pose in the grasp-site frame (`prop_pos`, `prop_quat` w,x,y,z);
 - `[scene]`: poses and sizes derived from the demonstrations (hinge, shelf, platform,
   container, rack, table height, beans);
-- `[success]`: the thresholds of the physical success predicate;
+- `[success]`: the thresholds of the success predicate (each with its procedure as a comment);
 - `[solver]` (optional): MuJoCo solver settings of the scene;
+- `[camera]` (optional): the view `RoboTaskEnv.camera()` renders (lookat, distance, azimuth,
+  elevation);
 - `[derived]`: the measured numbers the scene was derived from (for the record);
 - `[start]`: `qpos`, one arm start configuration [7] per demo.
 
@@ -19,6 +21,7 @@ every number in them can be recomputed from the data.
 from __future__ import annotations
 
 import sys
+import textwrap
 from typing import Any
 
 import numpy as np
@@ -102,18 +105,24 @@ def _fmt(value: Any) -> str:
     raise TypeError(f"cannot write {type(value).__name__} to a task spec")
 
 
-def dumps_task_spec(doc: dict[str, dict[str, Any]], header: str = "") -> str:
+def dumps_task_spec(doc: dict[str, dict[str, Any]], header: str = "",
+                    comments: dict[str, dict[str, str]] | None = None) -> str:
     """TOML text of a spec: tables of scalars, strings and (nested) number lists only.
 
     Args:
         doc: {table: {key: value}}.
         header: comment lines put at the top (without '#').
+        comments: {table: {key: text}}: a comment (wrapped, '#'-prefixed) written above the key.
     """
+    comments = comments or {}
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
     for table, entries in doc.items():
         lines.append("")
         lines.append(f"[{table}]")
         for key, value in entries.items():
+            text = comments.get(table, {}).get(key)
+            if text:
+                lines.extend(f"# {line}" for line in textwrap.wrap(text, 93))
             lines.append(f"{key} = {_fmt(value)}")
     text = "\n".join(lines).lstrip("\n") + "\n"
     tomllib.loads(text)  # round-trip check

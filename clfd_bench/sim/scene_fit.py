@@ -142,6 +142,44 @@ def hinge_angles(points: np.ndarray, fit: HingeFit) -> np.ndarray:
     return np.arctan2(d @ up, d @ fit.front)
 
 
+def grip_slips(positions: np.ndarray, quaternions: np.ndarray, fit: HingeFit
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far a lid's edge must move in the fingers for the hand to follow the demos: with
+    the lid turning about `fit`'s axis to the angle of each grasp point, relative to where it
+    was grasped (the first sample).
+
+    Args:
+        positions: [N, T, 3] hand positions (m).
+        quaternions: [N, T, 4] hand orientations (w, x, y, z).
+
+    Returns:
+        radial [N, T] (m, change of the grasp point's distance from the axis), axial [N, T] (m,
+        change along the axis) and turn [N, T] (rad, angle of the hand's rotation relative to
+        the lid since the first sample).
+    """
+    pos = np.asarray(positions, dtype=float)
+    quat = np.asarray(quaternions, dtype=float)
+    g = grasp_points(pos, quat)
+    d = g - fit.point
+    axial = d @ fit.axis
+    radius = np.linalg.norm(d - axial[..., None] * fit.axis, axis=-1)
+    ang = hinge_angles(g, fit)
+    turn = np.empty(ang.shape)
+    lid = np.empty(4)
+    rel0 = np.empty(4)
+    rel = np.empty(4)
+    inv = np.empty(4)
+    for n in range(ang.shape[0]):
+        for t in range(ang.shape[1]):
+            mujoco.mju_axisAngle2Quat(lid, fit.axis, ang[n, t])
+            mujoco.mju_negQuat(inv, lid)
+            mujoco.mju_mulQuat(rel, inv, quat[n, t] / np.linalg.norm(quat[n, t]))
+            if t == 0:
+                rel0[:] = rel
+            turn[n, t] = 2.0 * np.arccos(min(1.0, abs(float(rel @ rel0))))
+    return radius - radius[:, :1], axial - axial[:, :1], turn
+
+
 def prop_pose(hand_pos: np.ndarray, hand_quat: np.ndarray, rel_pos: np.ndarray,
               rel_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World pose of a prop held at `rel_pos` [3], `rel_quat` [4] in the hand frame.
