@@ -31,8 +31,17 @@ def test_true_demo_succeeds_reversed_demo_fails(letter_h):
 
     bad = execute_predictions("helloworld", "h", letter_h[1:2, ::-1], demos=[1])
     assert not bad[0].success
-    assert bad[0].failure_reason.startswith("task not achieved")
-    assert "dtw=" in bad[0].failure_reason
+    # The reversed letter starts at the other end: the first command is a jump the real
+    # Panda refuses.
+    assert bad[0].failure_kind == "reflex"
+    assert bad[0].failure_reason.startswith("reflex: cartesian velocity")
+    assert "at step 0" in bad[0].failure_reason
+    # Executed to the end but the wrong shape: the task's own criterion says no.
+    mirrored = letter_h[1, ::-1] + letter_h[1, 0] - letter_h[1, -1]  # reversed, same start
+    (wrong,) = execute_predictions("helloworld", "h", mirrored[None], demos=[1])
+    assert not wrong.success and wrong.failure_kind == "task"
+    assert wrong.failure_reason.startswith("task not achieved")
+    assert "dtw=" in wrong.failure_reason
 
 
 def test_env_is_reused_between_calls():

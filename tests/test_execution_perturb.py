@@ -142,7 +142,8 @@ def test_confusion_table_flags_disagreements():
             + [_rec("clfd/A-v1", "mirror", True)] + [_rec("clfd/A-v1", "mirror", False)] * 19
             + [_rec("clfd/B-v1", "demo", True)] * 19 + [_rec("clfd/B-v1", "demo", False)]
             + [_rec("clfd/B-v1", "teleport", True)] * 2
-            + [_rec("clfd/B-v1", "teleport", False, "reflex")] * 18)
+            + [_rec("clfd/B-v1", "teleport", False, "reflex")] * 18
+            + [dict(_rec("clfd/A-v1", "mirror", True), applicable=False)] * 3)
     table = confusion_table(rows)
     assert MAX_FALSE_SUCCESS == 0.05
     assert table["clfd/A-v1"]["demo"]["ok"] and table["clfd/A-v1"]["mirror"]["ok"]  # 1/20 = 5 %
@@ -150,5 +151,6 @@ def test_confusion_table_flags_disagreements():
     assert not table["clfd/B-v1"]["teleport"]["ok"]  # 2/20 = 10 % false successes
     assert table["clfd/B-v1"]["teleport"]["failure_kinds"] == {"reflex": 18}
     text = format_confusion(table)
-    assert "| A-v1 | 20/20 | 1/20 | – |" in text
+    assert table["clfd/A-v1"]["mirror"]["not_applicable"] == 3
+    assert "| A-v1 | 20/20 | 1/20 (3 n/a) | – |" in text
     assert "| B-v1 | 19/20 ✗ | – | 2/20 ✗ |" in text

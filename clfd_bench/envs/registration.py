@@ -1,6 +1,6 @@
 """Gymnasium registration of every clfd-bench environment (namespace `clfd`).
 
-Ids (all `-v0`):
+Ids (each env has its own version, `env_version(name)`; all are `-v1` today):
 
 | id | task | entry point |
 |---|---|---|
@@ -27,7 +27,6 @@ import re
 import gymnasium as gym
 
 NAMESPACE = "clfd"
-VERSION = 0
 
 #: RoboTasks env name -> dataset task name.
 ROBOTASKS_ENVS: dict[str, str] = {
@@ -46,11 +45,34 @@ LASA_SHAPES: tuple[str, ...] = (
     "Zshape",
 )
 WRITING_MODULE = "clfd_bench.envs.writing"
+#: Version of each family of envs; a behaviour change bumps the version of what it changes
+#: (and adds a line to the env class's Version History). Gymnasium then refuses the old id
+#: with a message naming the new one.
+FAMILY_VERSIONS: dict[str, int] = {"robotasks": 0, "letters": 0, "text": 0, "lasa": 0}
+#: Versions of single envs that moved on without their family, e.g. {"Pouring": 2}.
+ENV_VERSIONS: dict[str, int] = {}
 _VALID_NAME = re.compile(r"^[A-Za-z0-9_]+$")
 
 
+def env_version(name: str) -> int:
+    """The current version of env `name` (the id without namespace and version, e.g.
+    "BoxOpening", "HelloWorld-h", "LASA-Angle"): its entry in `ENV_VERSIONS`, else the
+    version of its family (`FAMILY_VERSIONS`: "robotasks", "letters", "text", "lasa")."""
+    if name in ENV_VERSIONS:
+        return ENV_VERSIONS[name]
+    if name in ROBOTASKS_ENVS:
+        return FAMILY_VERSIONS["robotasks"]
+    if name == "HelloWorld":
+        return FAMILY_VERSIONS["text"]
+    if name.startswith("HelloWorld-"):
+        return FAMILY_VERSIONS["letters"]
+    if name.startswith("LASA-"):
+        return FAMILY_VERSIONS["lasa"]
+    raise KeyError(f"no clfd-bench env named {name!r}")
+
+
 def _env_id(name: str) -> str:
-    return f"{NAMESPACE}/{name}-v{VERSION}"
+    return f"{NAMESPACE}/{name}-v{env_version(name)}"
 
 
 def lasa_env_name(shape: str) -> str:

@@ -6,11 +6,18 @@ shape, another task, shortcuts, drift, stopping early, ...). `replay` runs one f
 demos of one env; `confusion_table` summarises many records into env × family counts and
 flags every cell that disagrees with its family's expectation (a must-succeed family below
 100 %, a must-fail family succeeding in more than `MAX_FALSE_SUCCESS` of the demos).
+
+A family is wrong by its shape only where it changes the shape more than the demonstrations of
+the task differ from one another: the shortcut of a straight line is that line. So a variant
+of a shape family (`SHAPE_FAMILIES`) whose path lies within the task's largest inter-demo
+Hausdorff distance of the demo it came from (positions in metres on the robot) is not a wrong
+trajectory: its record is marked `applicable = False` and the table counts it apart ("n/a").
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Iterable, Sequence
 from typing import Any
@@ -22,12 +29,15 @@ from clfd_bench.envs.base import PandaEnv, load_task
 from clfd_bench.execution.perturb import FAMILIES, PerturbContext, family_names, perturb
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
+from clfd_bench.metrics.trajectory import hausdorff
 
-__all__ = ["MAX_FALSE_SUCCESS", "ReplayRecord", "confusion_table", "families_for",
-           "format_confusion", "replay", "replay_trajectory"]
+__all__ = ["MAX_FALSE_SUCCESS", "SHAPE_FAMILIES", "ReplayRecord", "confusion_table",
+           "families_for", "format_confusion", "is_distinct", "replay", "replay_trajectory"]
 
 #: A must-fail family may succeed on at most this fraction of an env's demos.
 MAX_FALSE_SUCCESS = 0.05
+#: Must-fail families that are wrong by the shape of their path (see the module docstring).
+SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
 
 
 @dataclasses.dataclass
@@ -42,6 +52,7 @@ class ReplayRecord:
     wall_s: float
     sim_s: float
     max_tracking_error_m: float
+    applicable: bool = True
 
     @property
     def expect(self) -> str:
@@ -52,7 +63,8 @@ class ReplayRecord:
         return {"env": self.env_id, "demo": self.demo, "family": self.family,
                 "expect": self.expect, "success": self.success, "info": json_safe(self.info),
                 "wall_s": self.wall_s, "sim_s": self.sim_s,
-                "max_tracking_error_m": json_safe(self.max_tracking_error_m)}
+                "max_tracking_error_m": json_safe(self.max_tracking_error_m),
+                "applicable": self.applicable}
 
 
 def _next_task_name(dataset: str, task_name: str) -> str:
@@ -99,6 +111,32 @@ def replay_trajectory(env: PandaEnv, demo: int, family: str = "demo"
     return perturb(family, traj, PerturbContext(demo, units, other))
 
 
+def _positions_m(env: PandaEnv, traj: np.ndarray) -> np.ndarray:
+    """[T, k] positions in metres on the robot: a pose's position, a pen point on the board."""
+    traj = np.asarray(traj, dtype=float)
+    return traj[:, :3] if traj.shape[1] == 7 else traj * (1.0 / _units_per_m(env))
+
+
+@functools.lru_cache(maxsize=64)
+def _demo_spread_m(dataset: str, task_name: str, units_per_m: float) -> float:
+    """The largest Hausdorff distance (m) between two demos of a task."""
+    demos = np.asarray(load_task(dataset, task_name).demos, dtype=float)
+    pts = demos[..., :3] if demos.shape[-1] == 7 else demos / units_per_m
+    return max(hausdorff(pts[i], pts[j]) for i in range(len(pts)) for j in range(i + 1, len(pts)))
+
+
+def is_distinct(env: PandaEnv, demo: int, family: str,
+                trajectory: np.ndarray | list[np.ndarray]) -> bool:
+    """Whether a variant of a shape family differs from demo `demo` by more than the task's
+    demos differ from one another (always True for the other families and for the text env,
+    whose letters are judged one by one)."""
+    if family not in SHAPE_FAMILIES or isinstance(trajectory, list):
+        return True
+    original = env.demo_trajectory(demo)
+    spread = _demo_spread_m(env.dataset, env.task_name, _units_per_m(env))
+    return hausdorff(_positions_m(env, trajectory), _positions_m(env, original)) > spread
+
+
 def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo",
            settle_s: float = DEFAULT_SETTLE_S, env: gym.Env | None = None,
            **env_kwargs: Any) -> list[ReplayRecord]:
@@ -122,6 +160,7 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
         records = []
         for j in demo_ids:
             traj = replay_trajectory(base, j, family)
+            applicable = is_distinct(base, j, family, traj)
             t0 = time.perf_counter()
             result = rollout(env, traj, demo=j, settle_s=settle_s)
             wall = time.perf_counter() - t0
@@ -132,7 +171,7 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
                       if k not in ("tracking_error", "ik_error")},
                 wall_s=wall, sim_s=result.steps * base.control_dt,
                 max_tracking_error_m=float(np.nanmax(err)) if np.isfinite(err).any()
-                else float("nan")))
+                else float("nan"), applicable=applicable))
         return records
     finally:
         if own:
@@ -142,14 +181,19 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
 def confusion_table(records: Iterable[ReplayRecord | dict[str, Any]]
                     ) -> dict[str, dict[str, dict[str, Any]]]:
     """{env: {family: {"n", "successes", "expect", "ok", "failure_kinds"}}} from replay
-    records (objects or their `to_json()` dicts). `ok` is False where a must-succeed family
-    failed on any demo or a must-fail family succeeded on more than `MAX_FALSE_SUCCESS`."""
+    records (objects or their `to_json()` dicts), plus "not_applicable": variants of a shape
+    family that are no wrong trajectory (`is_distinct`), left out of "n". `ok` is False where a
+    must-succeed family failed on any demo or a must-fail family succeeded on more than
+    `MAX_FALSE_SUCCESS` of its applicable demos."""
     table: dict[str, dict[str, dict[str, Any]]] = {}
     for r in records:
         r = r.to_json() if isinstance(r, ReplayRecord) else r
         cell = table.setdefault(r["env"], {}).setdefault(
             r["family"], {"n": 0, "successes": 0, "expect": FAMILIES[r["family"]].expect,
-                          "failure_kinds": {}})
+                          "failure_kinds": {}, "not_applicable": 0})
+        if not r.get("applicable", True):
+            cell["not_applicable"] += 1
+            continue
         cell["n"] += 1
         cell["successes"] += int(r["success"])
         kind = (r["info"].get("failure") or {}).get("kind") if not r["success"] else None
@@ -176,10 +220,13 @@ def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
         for f in families:
             c = cells.get(f)
             row.append("–" if c is None else
-                       f"{c['successes']}/{c['n']}" + ("" if c["ok"] else " ✗"))
+                       f"{c['successes']}/{c['n']}" + ("" if c["ok"] else " ✗")
+                       + (f" ({c['not_applicable']} n/a)" if c.get("not_applicable") else ""))
         lines.append("| " + " | ".join(row) + " |")
     lines.append("")
     lines.append("Cells: demos that succeeded / demos run. (S) must succeed on every demo; (F) "
                  f"must fail on ≥ {100 * (1 - MAX_FALSE_SUCCESS):.0f} % of demos; ✗ marks a "
-                 "cell that does not.")
+                 "cell that does not. n/a: variants of a shape family (shortcut, rush-wait, "
+                 "mirror) that stay within the task's own inter-demo spread (largest Hausdorff "
+                 "distance between two demos) of the demo: no wrong trajectory, not counted.")
     return "\n".join(lines)

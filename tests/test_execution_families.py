@@ -1,0 +1,54 @@
+"""Every task's success criterion both ways: on every RoboTasks, HelloWorld and LASA env the
+must-succeed families succeed and every must-fail family fails (one demo per family, the demo
+rotating with the family so that the suite covers different demos; `clfd-bench replay --env
+all --perturb all` runs every demo)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+import clfd_bench  # noqa: F401  (registers the envs)
+from clfd_bench.envs.registration import env_specs
+from clfd_bench.execution.perturb import FAMILIES
+from clfd_bench.execution.replay import families_for, replay
+
+SHAPE_ENVS = [i for i in env_specs() if not i.startswith("clfd/HelloWorld-v")]
+
+
+@pytest.mark.parametrize("env_id", SHAPE_ENVS)
+def test_families_on_every_env(env_id):
+    env = gym.make(env_id, disable_env_checker=True)
+    try:
+        base = env.unwrapped
+        wrong = []
+        for k, family in enumerate(families_for(base)):
+            demo = (k * 3 + len(env_id)) % base.num_demos
+            (rec,) = replay(env_id, [demo], family, env=env)
+            if rec.applicable and rec.success != (FAMILIES[family].expect == "succeed"):
+                wrong.append((family, demo, rec.info.get("failure_reason"),
+                              {k: v for k, v in rec.info.items() if k not in (
+                                  "failure_reason", "failure", "objects")}))
+        assert not wrong, wrong
+    finally:
+        env.close()
+
+
+def test_a_shortcut_of_a_straight_line_is_no_wrong_trajectory():
+    env = gym.make("clfd/LASA-Line-v0", disable_env_checker=True)
+    try:
+        (short,) = replay("clfd/LASA-Line-v0", [0], "shortcut", env=env)
+        (rev,) = replay("clfd/LASA-Line-v0", [0], "reverse", env=env)
+    finally:
+        env.close()
+    assert not short.applicable and rev.applicable and not rev.success
+
+
+def test_families_on_the_text_env():
+    env = gym.make("clfd/HelloWorld-v0", text="lo", disable_env_checker=True)
+    try:
+        for family in ("demo", "slower", "noise", "mirror", "rush-wait", "teleport"):
+            (rec,) = replay("clfd/HelloWorld-v0", [2], family, env=env)
+            assert rec.success == (FAMILIES[family].expect == "succeed"), (family, rec.info)
+    finally:
+        env.close()
