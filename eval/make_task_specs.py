@@ -2,9 +2,16 @@
 
     python eval/make_task_specs.py [TASK ...] [--no-starts]
 
-Every data-derived number (hinge axis, shelf/platform/container placement, table height, rack
-blocks, start configurations) is recomputed by `clfd_bench.envs.robotask_derive.derive_spec`;
-design constants live there too (`DESIGN`). Takes ~20 s per task.
+Every data-derived number (hinge axis, shelf/platform/container placement, table height, dish
+rack, the grip's slip bounds, success thresholds, start configurations, camera) is recomputed by
+`clfd_bench.envs.robotask_derive.derive_spec`, its procedure written as a comment next to it;
+design constants live there too (`DESIGN`). Takes ~1 min per task on 2 cores (pouring ~4 min:
+it replays the demos to place the container and derive its thresholds).
+
+Also (with no TASK, or TASK `writing`) regenerates the writing envs' per-task success
+tolerances `tasks/writing_tolerances.toml` from the HelloWorld and LASA demonstrations
+(`clfd_bench.envs.writing_derive`; the procedure's constants are in `tasks/writing.toml`
+[tolerances]). Takes a few seconds.
 """
 
 from __future__ import annotations
@@ -22,15 +29,31 @@ Positions in metres (Panda base frame), angles in degrees unless the key says ot
 The scene MJCF is tasks/{task}.xml; the env is clfd_bench.envs.robotasks.RoboTaskEnv."""
 
 
+def make_writing_tolerances(tasks: list[str]) -> list[str]:
+    """Writes `tasks/writing_tolerances.toml` when `tasks` is the default (every RoboTask) or
+    names `writing`; returns `tasks` without `writing`."""
+    from clfd_bench.envs.writing import load_writing_spec
+    from clfd_bench.envs.writing_derive import derive_tolerances, dumps_tolerances, tolerances_path
+
+    if tasks == list(TASKS) or "writing" in tasks:
+        procedure = load_writing_spec().tolerance_procedure
+        atomic_write_text(tolerances_path(), dumps_tolerances(derive_tolerances(), procedure))
+        print(f"wrote {tolerances_path()}")
+    return [t for t in tasks if t != "writing"]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("tasks", nargs="*", default=list(TASKS), help=f"of {list(TASKS)}")
     parser.add_argument("--no-starts", action="store_true",
                         help="keep the existing [start] qpos (skip the IK, ~20 s per task)")
     args = parser.parse_args(argv)
+    args.tasks = make_writing_tolerances(args.tasks)
     for task in args.tasks:
-        doc = derive_spec(task, with_starts=not args.no_starts)
-        atomic_write_text(spec_path(task), dumps_task_spec(doc, HEADER.format(task=task)))
+        comments: dict[str, dict[str, str]] = {}
+        doc = derive_spec(task, with_starts=not args.no_starts, comments=comments)
+        atomic_write_text(spec_path(task), dumps_task_spec(doc, HEADER.format(task=task),
+                                                           comments))
         print(f"wrote {spec_path(task)}")
     return 0
 

@@ -11,6 +11,9 @@ previous anti-diagonals, so every step is a handful of numpy operations over a w
 diagonal and over a batch of trajectory pairs at once. The recursion is the textbook one,
 evaluated in the same order, so the result equals the cell-by-cell loop's up to the rounding
 of the point distances (tests compare to 1e-12 relative).
+
+Point-set metrics, which ignore the time order (:func:`hausdorff`, :func:`coverage`,
+:func:`nearest_distances`), compare the shapes two trajectories draw; the writing envs use them.
 """
 
 from __future__ import annotations
@@ -23,10 +26,13 @@ from clfd_bench.metrics.orientation import quaternion_error
 
 __all__ = [
     "TRAJECTORY_METRICS",
+    "coverage",
     "dtw",
     "dtw_batch",
     "frechet",
     "frechet_batch",
+    "hausdorff",
+    "nearest_distances",
     "swept_area",
     "swept_area_batch",
     "trajectory_errors",
@@ -251,6 +257,83 @@ def swept_area(pred: np.ndarray, ref: np.ndarray) -> float:
         The swept area in squared length units.
     """
     return float(swept_area_batch(_as_traj(pred, "pred")[None], _as_traj(ref, "ref")[None])[0])
+
+
+def nearest_distances(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from every point of one point set to the nearest point of the other.
+
+    Order-free (the points' time order plays no part); a k-d tree (``scipy.spatial``) keeps it
+    ``O((N + M) log(N + M))``.
+
+    Args:
+        a: ``[N, D]`` points.
+        b: ``[M, D]`` points.
+
+    Returns:
+        ``(d_ab [N], d_ba [M])``: ``d_ab[i] = min_j |a[i] - b[j]|`` and
+        ``d_ba[j] = min_i |a[i] - b[j]|``.
+    """
+    from scipy.spatial import cKDTree
+
+    pa = _as_traj(a, "a")
+    pb = _as_traj(b, "b")
+    if len(pa) == 0 or len(pb) == 0 or pa.shape[1] != pb.shape[1]:
+        raise ValueError(f"need two non-empty point sets of the same dimension, got shapes "
+                         f"{pa.shape} and {pb.shape}")
+    d_ab = cKDTree(pb).query(pa, k=1)[0]
+    d_ba = cKDTree(pa).query(pb, k=1)[0]
+    return np.asarray(d_ab, dtype=float), np.asarray(d_ba, dtype=float)
+
+
+def hausdorff(pred: np.ndarray, ref: np.ndarray) -> float:
+    """Symmetric Hausdorff distance between the point sets of two trajectories.
+
+    The largest distance from a point of either trajectory to the nearest point of the other:
+    the worst two-sided deviation of the drawn shape, whatever the timing. Symmetric.
+
+    Args:
+        pred: ``[T, D]`` points.
+        ref: ``[T2, D]`` points.
+
+    Returns:
+        The distance, in the arrays' length unit (0 for the same point set).
+    """
+    d_pr, d_rp = nearest_distances(pred, ref)
+    return float(max(d_pr.max(), d_rp.max()))
+
+
+def coverage(ref: np.ndarray, pred: np.ndarray, radius: float, by: str = "length",
+             ref_distances: np.ndarray | None = None) -> float:
+    """How much of a reference trajectory another one passes within ``radius`` of.
+
+    Order-free, like :func:`hausdorff`. ``by="length"`` weighs the reference by arc length: the
+    fraction of its polyline length whose segments have both end points within ``radius`` of
+    some point of ``pred`` (time-sampled points would over-weigh where the reference is slow,
+    e.g. a pen resting at its end point); a reference without length falls back to points.
+    ``by="points"``: the fraction of the reference's points within ``radius``.
+
+    Args:
+        ref: ``[T, D]`` the trajectory to cover (e.g. the target).
+        pred: ``[T2, D]`` the covering points (e.g. the ink).
+        radius: in the arrays' length unit.
+        by: ``"length"`` or ``"points"``.
+        ref_distances: ``[T]`` the distances of ``ref``'s points to ``pred`` if already known
+            (the second result of :func:`nearest_distances` ``(pred, ref)``); saves the search.
+
+    Returns:
+        A fraction in [0, 1].
+    """
+    if by not in ("length", "points"):
+        raise ValueError(f"by must be 'length' or 'points', got {by!r}")
+    r = _as_traj(ref, "ref")
+    d_ref = nearest_distances(pred, r)[1] if ref_distances is None else ref_distances
+    inside = d_ref <= radius
+    if by == "length" and len(r) >= 2:
+        seg = np.linalg.norm(np.diff(r, axis=0), axis=1)
+        total = float(seg.sum())
+        if total > 0:
+            return float(seg[inside[1:] & inside[:-1]].sum() / total)
+    return float(np.mean(inside))
 
 
 def _quaternion_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
