@@ -15,8 +15,8 @@ from clfd_bench.envs.base import load_task
 from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 
-ENVS = {"openbox": "clfd/BoxOpening-v0", "bottle2shelf": "clfd/BottleShelving-v0",
-        "platestandingtolying": "clfd/PlateStacking-v0", "pouring": "clfd/Pouring-v0"}
+ENVS = {"openbox": "clfd/BoxOpening-v1", "bottle2shelf": "clfd/BottleShelving-v1",
+        "platestandingtolying": "clfd/PlateStacking-v1", "pouring": "clfd/Pouring-v1"}
 
 
 @pytest.fixture(scope="module")

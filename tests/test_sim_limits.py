@@ -204,7 +204,7 @@ def pose_env_cls():
 
 
 def test_goal_pose_from_the_first_step_is_a_reflex():
-    env = gym.make("clfd/BottleShelving-v0")
+    env = gym.make("clfd/BottleShelving-v1")
     base = env.unwrapped
     goal = base.trajectory_to_actions(base.demo_trajectory(0))[-1]
     obs, _ = env.reset(options={"demo": 0})
@@ -223,7 +223,7 @@ def test_goal_pose_from_the_first_step_is_a_reflex():
     env.close()
 
 
-@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v0", "clfd/HelloWorld-h-v0"])
+@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v1", "clfd/HelloWorld-h-v1"])
 def test_demo_replay_has_no_failure(env_id):
     env = gym.make(env_id)
     result = rollout(env, env.unwrapped.demo_trajectory(0), demo=0)

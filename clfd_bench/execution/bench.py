@@ -17,12 +17,12 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
 #: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
 DEFAULT_ENVS = (
-    "clfd/HelloWorld-h-v0", "clfd/LASA-Angle-v0", "clfd/BoxOpening-v0",
-    "clfd/BottleShelving-v0", "clfd/PlateStacking-v0", "clfd/Pouring-v0",
+    "clfd/HelloWorld-h-v1", "clfd/LASA-Angle-v1", "clfd/BoxOpening-v1",
+    "clfd/BottleShelving-v1", "clfd/PlateStacking-v1", "clfd/Pouring-v1",
 )
 #: Speed targets (x real time) from the issue.
 TARGET_X = 50.0
-TARGET_X_POURING = 20.0
+TARGET_X_POURING = 30.0
 
 
 def target_for(env_id: str) -> float:

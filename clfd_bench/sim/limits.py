@@ -60,9 +60,9 @@ error), not as a joint velocity one. Elbow limits (libfranka's Cartesian-with-el
 not checked: the benchmark commands `hand` poses only.
 
 **How the bounds were measured** (tracking, collision, filters; numbers next to the
-constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v0`, `BottleShelving`,
-`PlateStacking`, `Pouring`: 9 demos each; `clfd/HelloWorld-<l>-v0`: 8 per letter;
-`clfd/LASA-<Shape>-v0`: 7 per shape), each as recorded and as the `slower` (2×) and `faster`
+constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v1`, `BottleShelving`,
+`PlateStacking`, `Pouring`: 9 demos each; `clfd/HelloWorld-<l>-v1`: 8 per letter;
+`clfd/LASA-<Shape>-v1`: 7 per shape), each as recorded and as the `slower` (2×) and `faster`
 (1.5×) replay families (`clfd_bench.execution.replay.replay_trajectory`), run with
 `clfd_bench.execution.rollout.rollout` (1 s of settling) in envs whose monitors had every bound
 infinite, recording per step the command, the hand's pose error and the robot-scene contact
