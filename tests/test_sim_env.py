@@ -8,34 +8,13 @@ import numpy as np
 import pytest
 
 import clfd_bench  # noqa: F401
-from clfd_bench.envs.base import PandaEnv, load_task
 from clfd_bench.execution.rollout import rollout
 from clfd_bench.sim.robot import robot_model
-from clfd_bench.sim.start_configs import backward_start_configs
-
-
-class _PoseEnv(PandaEnv):
-    """Bare Panda following openbox demo 0 (no props): the base class's default pose action."""
-
-    gripper_action = True
-    dataset = "robotasks"
-    task_name = "openbox"
-    starts: np.ndarray
-
-    @property
-    def num_demos(self) -> int:
-        return len(self.starts)
-
-    def _start_qpos(self, demo: int) -> np.ndarray:
-        return self.starts[demo]
 
 
 @pytest.fixture(scope="module")
-def pose_env():
-    task = load_task("robotasks", "openbox")
-    _PoseEnv.starts = backward_start_configs(robot_model(), task.positions[:1],
-                                             task.quaternions[:1])
-    env = _PoseEnv()
+def pose_env(pose_env_cls):
+    env = pose_env_cls()
     yield env
     env.close()
 
@@ -77,8 +56,8 @@ def test_unreachable_action_fails_as_unreachable(pose_env):
     assert np.all(np.isfinite(obs["qpos"]))
 
 
-def test_unreachable_action_without_limits_reports_error_without_crash(pose_env):
-    env = _PoseEnv(limits=None)
+def test_unreachable_action_without_limits_reports_error_without_crash(pose_env_cls):
+    env = pose_env_cls(limits=None)
     env.reset(seed=0, options={"demo": 0})
     for _ in range(30):
         obs, _, terminated, _, info = env.step(

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
-from clfd_bench.envs.base import PandaEnv, load_task
 from clfd_bench.execution.rollout import rollout
 from clfd_bench.sim.limits import (
     CARTESIAN_VELOCITY,
@@ -24,8 +23,6 @@ from clfd_bench.sim.limits import (
     filter_gain,
     panda_limits,
 )
-from clfd_bench.sim.robot import robot_model
-from clfd_bench.sim.start_configs import backward_start_configs
 
 DT = 1.0 / 60.0
 SHOULDER = np.array([0.0, 0.0, 0.333])
@@ -179,30 +176,6 @@ def test_monitor_state_roundtrip():
 
 
 # ----------------------------------------------------------------------------- in the envs
-class _PoseEnv(PandaEnv):
-    """Bare Panda (floor only) at openbox demo 0's start."""
-
-    gripper_action = True
-    dataset = "robotasks"
-    task_name = "openbox"
-    starts: np.ndarray
-
-    @property
-    def num_demos(self) -> int:
-        return len(self.starts)
-
-    def _start_qpos(self, demo: int) -> np.ndarray:
-        return self.starts[demo]
-
-
-@pytest.fixture(scope="module")
-def pose_env_cls():
-    task = load_task("robotasks", "openbox")
-    _PoseEnv.starts = backward_start_configs(robot_model(), task.positions[:1],
-                                             task.quaternions[:1])
-    return _PoseEnv
-
-
 def test_goal_pose_from_the_first_step_is_a_reflex():
     env = gym.make("clfd/BottleShelving-v1")
     base = env.unwrapped
