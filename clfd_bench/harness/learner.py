@@ -19,7 +19,13 @@ from torch import Tensor
 
 from clfd_bench.data.types import Task
 from clfd_bench.harness.config import PartConfig, RunConfig
-from clfd_bench.harness.loop import TrainStats, solver_spec, train_task
+from clfd_bench.harness.loop import (
+    TrainingDivergedError,
+    TrainStats,
+    solver_blew_up,
+    solver_spec,
+    train_task,
+)
 from clfd_bench.learning.node import NodeSpec
 from clfd_bench.learning.normalize import Normalizer
 from clfd_bench.learning.odeint import integrate
@@ -107,7 +113,16 @@ class PartLearner:
         y0 = torch.as_tensor(norm.apply(starts), dtype=torch.float32)
         t = torch.tensor(np.array(times, dtype=np.float64), dtype=torch.float32)
         self.method.eval()
-        out = integrate(self.method.field(index), y0, t, solver_spec(self.cfg, evaluation=True))
+        try:
+            out = integrate(self.method.field(index), y0, t, solver_spec(self.cfg, evaluation=True))
+        except (FloatingPointError, AssertionError, RuntimeError) as exc:
+            if not solver_blew_up(exc):
+                raise
+            raise TrainingDivergedError(
+                f"the trained {self.kind} model of task {index} diverged when predicting "
+                f"({exc}); lower lr (now {self.cfg.lr:g}) or use a more accurate eval_solver",
+                self.method.num_tasks - 1,
+            ) from exc
         traj = norm.invert(out.double().numpy())
         if self.kind == "orientation":
             traj = quat_exp_relative(traj, goals)

@@ -34,6 +34,7 @@ __all__ = [
     "TrainingDivergedError",
     "TrainStats",
     "batch_spec",
+    "solver_blew_up",
     "solver_spec",
     "train_task",
     "warm_up",
@@ -41,7 +42,32 @@ __all__ = [
 
 
 class TrainingDivergedError(RuntimeError):
-    """The loss became NaN or infinite."""
+    """Training diverged: the loss became NaN or infinite, or the ODE solver failed on the
+    model's dynamics. ``task`` is the index of the task being learned (tasks before it are
+    finished), ``iteration`` the iteration it was noticed at (None: while predicting)."""
+
+    def __init__(self, message: str, task: int, iteration: int | None = None):
+        super().__init__(message)
+        self.task, self.iteration = task, iteration
+
+
+_SOLVER_BLOW_UP = ("underflow in dt", "dopri5 needed more than", "dopri5: non-finite")
+
+
+def solver_blew_up(exc: BaseException) -> bool:
+    """Whether an exception of the ODE solvers means the integrated dynamics diverged
+    (non-finite error estimates, a step size that underflows, too many steps)."""
+    return isinstance(exc, FloatingPointError | AssertionError | RuntimeError) and str(
+        exc
+    ).startswith(_SOLVER_BLOW_UP)
+
+
+def _diverged(desc: str, task: int, it: int, cfg: PartConfig, what: str) -> TrainingDivergedError:
+    return TrainingDivergedError(
+        f"training diverged ({desc or f'task {task}'}): {what} at iteration {it}; lower lr "
+        f"(now {cfg.lr:g}, e.g. --set lr={cfg.lr / 10:g}) or use a more accurate solver",
+        task, it,
+    )
 
 
 @dataclass(frozen=True)
@@ -143,7 +169,13 @@ def train_task(
             sampler = samplers[k] = source.sampler(spec, cfg.iterations)
         t, y = sampler.sample(it, generator)
         optimizer.zero_grad(set_to_none=True)
-        y_hat = integrate(method.field(k), y[:, 0], t, solver)
+        try:
+            y_hat = integrate(method.field(k), y[:, 0], t, solver)
+        except (FloatingPointError, AssertionError, RuntimeError) as exc:
+            if not solver_blew_up(exc):
+                raise
+            bar.close()
+            raise _diverged(desc, task, it, cfg, f"the ODE solver failed ({exc})") from exc
         loss = (y_hat - y).pow(2).mean()
         loss.backward()
         extra = method.extra_loss(
@@ -158,10 +190,7 @@ def train_task(
             loss_value = float(loss.detach())
             if not math.isfinite(loss_value):
                 bar.close()
-                raise TrainingDivergedError(
-                    f"{desc or 'training'}: loss is {loss_value} at iteration {it} of task "
-                    f"{task}; lower lr (now {cfg.lr}) or use a more accurate solver"
-                )
+                raise _diverged(desc, task, it, cfg, f"the loss is {loss_value}")
             bar.set_postfix(loss=f"{loss_value:.2e}", refresh=False)
         bar.update(1)
     bar.close()

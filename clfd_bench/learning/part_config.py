@@ -1,21 +1,222 @@
-"""Hyperparameters of one learned model (:class:`PartConfig`) and the error every config
-check raises. Lives below the methods and the harness, which both read it."""
+"""Hyperparameters of one learned model (:class:`PartConfig`), the type and valid range of
+every one of them (:data:`PART_RULES`, checked by :class:`PartConfig` and by
+:func:`clfd_bench.harness.config.resolve_config`, which also names where a bad value came
+from), and the error every config check raises. Lives below the methods and the harness,
+which both read it."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
 from clfd_bench.learning.batches import BATCH_KINDS
 from clfd_bench.learning.hnet_reg import REG_MODES
+from clfd_bench.learning.mlp import ACTIVATIONS
 from clfd_bench.learning.odeint import ADAPTIVE_SOLVERS, BACKENDS, FIXED_SOLVERS
 
-__all__ = ["COMMON_KEYS", "ConfigError", "PART_FIELDS", "PartConfig"]
+__all__ = [
+    "COMMON_KEYS",
+    "ConfigError",
+    "Constraint",
+    "PART_CONSTRAINTS",
+    "PART_FIELDS",
+    "PART_RULES",
+    "PartConfig",
+    "Rule",
+]
 
 
 class ConfigError(ValueError):
     """A baselines file or an override is invalid; the message says what and how to fix it."""
+
+
+_TYPE_NAMES = {
+    "int": "an integer",
+    "float": "a number",
+    "bool": "true or false",
+    "str": "a string",
+    "ints": "a list of integers",
+}
+
+
+@dataclass(frozen=True)
+class Rule:
+    """The type and valid range of one configuration value.
+
+    Attributes:
+        kind: ``int``, ``float`` (always finite; an integer is accepted), ``bool``, ``str``
+            or ``ints`` (a non-empty list of integers, each in the range).
+        lo, hi: bounds (None: unbounded); ``lo_open`` / ``hi_open`` exclude them.
+        choices: the valid strings (``str``).
+        optional: None (unset) is valid too.
+        what: what the value means, for error messages.
+    """
+
+    kind: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[str, ...] = ()
+    optional: bool = False
+    what: str = ""
+
+    def describe(self) -> str:
+        """The valid values in words, e.g. ``a finite number > 0``."""
+        if self.kind == "bool":
+            return "true or false"
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        if self.kind == "float":
+            lo, hi = self.lo, self.hi
+            if lo is not None and hi is not None:
+                return (f"a number in {'(' if self.lo_open else '['}{lo:g}, {hi:g}"
+                        f"{')' if self.hi_open else ']'}")
+            base = "a finite number"
+        else:
+            base = "an integer" if self.kind == "int" else "a non-empty list of integers"
+            lo, hi = self.lo, self.hi
+            if lo is not None and hi is not None:
+                return f"{base} in {int(lo)}..{int(hi)}"
+        bounds = []
+        if lo is not None:
+            bounds.append(f"{'>' if self.lo_open else '>='} {lo:g}")
+        if hi is not None:
+            bounds.append(f"{'<' if self.hi_open else '<='} {hi:g}")
+        return f"{base} {' and '.join(bounds)}".rstrip()
+
+    def coerce(self, value: Any) -> tuple[Any, str | None]:
+        """``(value in its Python type, None)``, or ``(value, "<type in words>")`` when the
+        value has the wrong type (a bool is never a number)."""
+        if value is None and self.optional:
+            return None, None
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if self.kind == "ints":
+            ok = isinstance(value, list | tuple) and all(
+                isinstance(v, int) and not isinstance(v, bool) for v in value)
+            return (tuple(value), None) if ok else (value, _TYPE_NAMES["ints"])
+        if self.kind == "bool":
+            return (value, None) if isinstance(value, bool) else (value, _TYPE_NAMES["bool"])
+        if self.kind == "int":
+            ok = number and isinstance(value, int)
+            return (value, None) if ok else (value, _TYPE_NAMES["int"])
+        if self.kind == "float":
+            return (float(value), None) if number else (value, _TYPE_NAMES["float"])
+        if self.kind == "str":
+            return (value, None) if isinstance(value, str) else (value, _TYPE_NAMES["str"])
+        raise AssertionError(f"unknown rule kind {self.kind!r}")  # pragma: no cover
+
+    def _in_range(self, x: float) -> bool:
+        if self.kind == "float" and not math.isfinite(x):
+            return False
+        if self.lo is not None and (x <= self.lo if self.lo_open else x < self.lo):
+            return False
+        return self.hi is None or (x < self.hi if self.hi_open else x <= self.hi)
+
+    def valid(self, value: Any) -> bool:
+        """Whether a value of the right type (after :meth:`coerce`) is in range."""
+        if value is None:
+            return self.optional
+        if self.kind == "ints":
+            return len(value) > 0 and all(self._in_range(v) for v in value)
+        if self.kind == "bool":
+            return True
+        if self.kind == "str":
+            return not self.choices or value in self.choices
+        return self._in_range(value)
+
+    def check(self, name: str, value: Any) -> tuple[Any, str | None]:
+        """``(coerced value, None)``, or ``(value, "name must be ..., got ...")``."""
+        coerced, wrong_type = self.coerce(value)
+        if wrong_type is not None:
+            return value, f"{name} must be {wrong_type}, got {value!r}"
+        if not self.valid(coerced):
+            what = f" ({self.what})" if self.what else ""
+            return value, f"{name} must be {self.describe()}{what}, got {value!r}"
+        return coerced, None
+
+
+_SOLVERS = ADAPTIVE_SOLVERS + FIXED_SOLVERS
+_SIZE = 65536  # sanity bound of widths and embedding sizes (the paper's largest: 8192)
+
+PART_RULES: dict[str, Rule] = {
+    # training
+    "iterations": Rule("int", lo=1, what="optimiser steps per task"),
+    "lr": Rule("float", lo=0, lo_open=True, what="Adam learning rate"),
+    "lr_schedule": Rule("str", choices=("constant", "cosine")),
+    "lr_min_factor": Rule("float", lo=0, hi=1, what="final lr / lr of the cosine schedule"),
+    # networks
+    "node_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the NODE"),
+    "activation": Rule("str", choices=tuple(ACTIVATIONS)),
+    "task_emb_dim": Rule("int", lo=1, hi=_SIZE, what="task embedding size"),
+    "hnet_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the hypernetwork"),
+    "hnet_activation": Rule("str", choices=tuple(ACTIVATIONS)),
+    "chunk_emb_dim": Rule("int", lo=1, hi=_SIZE, what="chunk embedding size"),
+    "chunk_dim": Rule("int", lo=1, hi=2**24, what="weights generated per chunk"),
+    # regularisers
+    "beta": Rule("float", lo=0, what="weight of the hypernetwork regulariser"),
+    "hnet_reg": Rule("str", choices=REG_MODES),
+    "hnet_reg_samples": Rule("int", lo=1, what="earlier tasks per step for hnet_reg=sampled"),
+    "si_c": Rule("float", lo=0, what="weight of the SI penalty"),
+    "si_xi": Rule("float", lo=0, lo_open=True, what="SI damping; 0 divides by zero"),
+    "mas_lambda": Rule("float", lo=0, what="weight of the MAS penalty"),
+    "mas_points": Rule("int", lo=0, what="samples for the MAS importance, 0: all"),
+    # batches
+    "batch": Rule("str", choices=BATCH_KINDS),
+    "tsub": Rule("int", lo=2, what="window length in samples"),
+    "points": Rule("int", lo=2, what="samples per subsampled trajectory"),
+    "horizon_start": Rule("float", lo=0, lo_open=True, hi=1, what="share of the trajectory"),
+    "horizon_ramp": Rule("float", lo=0, hi=1, what="share of the iterations"),
+    "segments": Rule("bool"),
+    # ODE solver
+    "solver": Rule("str", choices=_SOLVERS),
+    "rtol": Rule("float", lo=0, lo_open=True, what="relative tolerance"),
+    "atol": Rule("float", lo=0, lo_open=True, what="absolute tolerance"),
+    "substeps": Rule("int", lo=1, what="solver steps per output interval"),
+    "solver_backend": Rule("str", choices=BACKENDS),
+    "eval_solver": Rule("str", choices=_SOLVERS, optional=True),
+    "eval_rtol": Rule("float", lo=0, lo_open=True, optional=True, what="relative tolerance"),
+    "eval_atol": Rule("float", lo=0, lo_open=True, optional=True, what="absolute tolerance"),
+    "eval_substeps": Rule("int", lo=1, optional=True, what="steps per output interval"),
+    # data
+    "normalize": Rule("bool"),
+    "tangent_goal": Rule("str", choices=("demo", "task")),
+}
+"""The type and valid range of every :class:`PartConfig` field (one entry per field)."""
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """A rule between several values of one :class:`PartConfig` (checked after the ranges).
+
+    Attributes:
+        keys: the values involved (named in the error).
+        holds: ``holds(values) -> bool`` on the config's values by name.
+        text: what must hold and how to fix it.
+    """
+
+    keys: tuple[str, ...]
+    holds: Callable[[Mapping[str, Any]], bool]
+    text: str
+
+
+def _segments_ok(c: Mapping[str, Any]) -> bool:
+    uses_segments = c["batch"] == "trajectories" and c["segments"] and c["horizon_start"] < 1
+    return not uses_segments or (c["solver"] == "rk4" and c["solver_backend"] == "fused")
+
+
+PART_CONSTRAINTS: tuple[Constraint, ...] = (
+    Constraint(
+        ("segments", "batch", "horizon_start", "solver", "solver_backend"), _segments_ok,
+        "segments (batch = trajectories, segments = true, horizon_start < 1) need solver = "
+        "rk4 with solver_backend = fused; set segments=false, or solver=rk4 and "
+        "solver_backend=fused",
+    ),
+)
+"""Rules between values, checked by :class:`PartConfig` and ``resolve_config``."""
 
 
 @dataclass(frozen=True)
@@ -83,27 +284,18 @@ class PartConfig:
     tangent_goal: str = "demo"
 
     def __post_init__(self) -> None:
-        checks = [
-            (self.iterations >= 1, "iterations must be >= 1"),
-            (self.lr > 0, "lr must be > 0"),
-            (self.lr_schedule in ("constant", "cosine"), "lr_schedule must be constant|cosine"),
-            (0.0 <= self.lr_min_factor <= 1.0, "lr_min_factor must be in [0, 1]"),
-            (all(h >= 1 for h in self.node_hidden) and self.node_hidden, "node_hidden invalid"),
-            (self.hnet_reg in REG_MODES, f"hnet_reg must be one of {', '.join(REG_MODES)}"),
-            (self.hnet_reg_samples >= 1, "hnet_reg_samples must be >= 1"),
-            (self.batch in BATCH_KINDS, f"batch must be one of {', '.join(BATCH_KINDS)}"),
-            (self.tangent_goal in ("demo", "task"), "tangent_goal must be demo|task"),
-            (self.solver_backend in BACKENDS, f"solver_backend must be one of {BACKENDS}"),
-            (self.mas_points >= 0, "mas_points must be >= 0"),
-        ]
-        solvers = ADAPTIVE_SOLVERS + FIXED_SOLVERS
-        for name in ("solver", "eval_solver"):
-            value = getattr(self, name)
-            checks.append((value is None or value in solvers,
-                           f"{name} must be one of {', '.join(solvers)}"))
-        for ok, msg in checks:
-            if not ok:
-                raise ConfigError(f"{msg} (got {self})")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name not in COMMON_KEYS and value == f.default:
+                continue  # a method-specific key left at its default: not used by the method
+            _, problem = PART_RULES[f.name].check(f.name, value)
+            if problem:
+                raise ConfigError(problem)
+        values = dataclasses.asdict(self)
+        for rule in PART_CONSTRAINTS:
+            if not rule.holds(values):
+                shown = ", ".join(f"{k} = {values[k]!r}" for k in rule.keys)
+                raise ConfigError(f"{shown}: {rule.text}")
 
     def resolved(self) -> PartConfig:
         """A copy with the ``eval_*`` settings filled in from the training ones."""
@@ -122,6 +314,7 @@ class PartConfig:
 
 
 PART_FIELDS: dict[str, dataclasses.Field] = {f.name: f for f in fields(PartConfig)}
+assert set(PART_RULES) == set(PART_FIELDS), "every PartConfig field needs one PART_RULES entry"
 
 COMMON_KEYS = frozenset(PART_FIELDS) - {
     "task_emb_dim", "hnet_hidden", "hnet_activation", "chunk_emb_dim", "chunk_dim", "beta",

@@ -1,0 +1,138 @@
+"""Checks at the edge, before any work: command-line counts, the output directory, the
+dataset's files; and :data:`USER_ERRORS`, the exceptions a user's mistake raises.
+
+Every check raises with a one-line message naming the bad value, where it came from and
+the fix; ``clfd-bench`` prints that line and exits with code 2 (:mod:`clfd_bench.cli.main`).
+They create nothing: a refused command leaves no folder behind. The resolved configuration
+itself is checked by :func:`clfd_bench.harness.config.resolve_config` (every key's type and
+range: :data:`~clfd_bench.learning.part_config.PART_RULES`,
+:data:`~clfd_bench.harness.config.RUN_RULES`).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from clfd_bench.data.sources import DatasetError
+from clfd_bench.learning.part_config import ConfigError
+
+__all__ = [
+    "USER_ERRORS",
+    "InputError",
+    "check_count",
+    "check_dataset",
+    "check_env_count",
+    "check_out_dir",
+]
+
+
+class InputError(ValueError):
+    """A command-line value (a count, an output path) is unusable; the message says why."""
+
+
+def check_count(flag: str, value: int | None, minimum: int = 1) -> None:
+    """``value`` (from option ``flag``) is None or an integer ``>= minimum``.
+
+    Raises:
+        InputError: e.g. ``--threads -2: must be an integer >= 1 ...``.
+    """
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise InputError(f"{flag} {value}: must be an integer >= {minimum}; "
+                         f"pass e.g. {flag} {minimum}")
+
+
+def check_env_count(name: str, minimum: int = 1) -> None:
+    """Environment variable ``name``, if set and not blank, is an integer ``>= minimum``.
+
+    Raises:
+        InputError: e.g. ``CLFD_THREADS=abc: must be an integer >= 1 ...``.
+    """
+    raw = os.environ.get(name, "")
+    if not raw.strip():
+        return
+    try:
+        value = int(raw)
+    except ValueError:
+        value = None
+    if value is None or value < minimum:
+        raise InputError(f"environment variable {name}={raw}: must be an integer >= "
+                         f"{minimum}; set it to e.g. {minimum}, or unset it")
+
+
+def _writable(path: Path) -> bool:
+    """Whether files can be created in directory ``path``: permissions (``os.access``), then
+    a real probe (a temporary file, removed at once), which also catches a read-only
+    filesystem, ``/proc`` and the like, where ``os.access`` says yes to root."""
+    if not os.access(path, os.W_OK | os.X_OK):
+        return False
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".clfd-write-probe-", dir=path)
+    except OSError:
+        return False
+    os.close(fd)
+    os.unlink(probe)
+    return True
+
+
+def check_out_dir(path: str | os.PathLike[str], flag: str = "--out") -> None:
+    """Refuse, before anything is created, an output directory that cannot be used: an
+    existing file, a non-writable existing directory (or sub-directory), or a new path whose
+    nearest existing parent is a file or not writable.
+
+    Raises:
+        InputError: one line naming the path and the fix.
+    """
+    if not str(path).strip():
+        raise InputError(f"{flag} is empty; pass a directory path")
+    out = Path(path)
+    if out.exists():
+        if not out.is_dir():
+            raise InputError(f"{flag} {out} is an existing file, not a directory; choose "
+                             "another path (or move the file away)")
+        if not _writable(out):
+            raise InputError(f"{flag} {out} is a directory you cannot write to (permissions or "
+                             "a read-only filesystem); choose another path or make it writable")
+        for sub in sorted(out.iterdir()) if os.access(out, os.R_OK) else ():
+            if sub.is_dir() and not _writable(sub):
+                raise InputError(f"{flag} {out}: its folder {sub.name}/ is not writable; make "
+                                 "it writable or choose another path")
+        return
+    if out.is_symlink():
+        raise InputError(f"{flag} {out} is a broken symbolic link (to {os.readlink(out)}); "
+                         "remove it or choose another path")
+    ancestor = out.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise InputError(f"{flag} {out} cannot be created: {ancestor} is a file, not a "
+                         "directory; choose another path")
+    if not _writable(ancestor):
+        raise InputError(f"{flag} {out} cannot be created: {ancestor} is not writable "
+                         "(permissions or a read-only filesystem); choose another path")
+
+
+def check_dataset(name: str, order: int = 0) -> None:
+    """Load dataset ``name`` in task ``order`` once (every file checked against its pinned
+    sha256 and shape), so that a missing, truncated or corrupt file is reported before any
+    folder is created or any training starts.
+
+    Raises:
+        DatasetError: one line naming the file and what to do (re-download, CLFD_DATA_DIR).
+    """
+    from clfd_bench.data import load_dataset
+
+    load_dataset(name, order=order)
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    from clfd_bench.methods import UnknownMethodError
+
+    return (ConfigError, InputError, DatasetError, UnknownMethodError)
+
+
+USER_ERRORS: tuple[type[BaseException], ...] = _user_errors()
+"""Exceptions caused by what a user typed or has on disk: printed as one line, exit 2."""
