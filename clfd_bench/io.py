@@ -2,8 +2,14 @@
 
 Every file the project writes (results, checkpoints, leaderboards, downloads) goes
 through these helpers: the content is written to a temporary file in the same folder,
-flushed to disk and renamed over the target, so a killed process leaves either the old
-file or the new one, never half of one.
+flushed to disk and renamed over the target, and the folder is flushed too, so a killed
+process (or a power cut) leaves either the old file or the new one, never half of one.
+A killed write can leave its temporary file (``.<name>.<random>.tmp``); the run directory
+owner (:mod:`clfd_bench.runs`) removes those when it next takes the run.
+
+Fault injection, for the kill tests: with ``CLFD_KILL_BEFORE_REPLACE=<file name>:<n>`` in
+the environment, the process SIGKILLs itself at its n-th write of a file of that name, after
+the temporary file is complete and before it replaces the target (the worst moment).
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import hashlib
 import json
 import math
 import os
+import signal
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -26,8 +33,39 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "atomic_open",
+    "fsync_dir",
     "sha256_file",
 ]
+
+_KILL_COUNTS: dict[str, int] = {}
+
+
+def _maybe_kill(name: str) -> None:
+    """The fault-injection hook (module docstring)."""
+    spec = os.environ.get("CLFD_KILL_BEFORE_REPLACE")
+    if not spec:
+        return
+    target, _, nth = spec.partition(":")
+    if name != target:
+        return
+    _KILL_COUNTS[name] = _KILL_COUNTS.get(name, 0) + 1
+    if _KILL_COUNTS[name] == int(nth or 1):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+def fsync_dir(path: str | os.PathLike[str]) -> None:
+    """Flushes a folder's entries (a rename in it) to disk; a no-op where folders cannot be
+    opened (e.g. Windows)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager
@@ -47,7 +85,9 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[A
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        _maybe_kill(target.name)
         os.replace(tmp, target)
+        fsync_dir(target.parent)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)

@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from clfd_bench.execution.cache import CACHE_FILE
 from clfd_bench.execution.evaluate import evaluate_run
+from clfd_bench.runs import RunDir
 from clfd_bench.viz.rerun_log import rrd_entity_paths
 
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")
@@ -57,7 +57,7 @@ def test_evaluate_run_writes_success_and_keeps_everything_else(tiny_run, tmp_pat
     assert after["sim_accuracy"][0][1] is None
     assert set(after["sim_cl_metrics"]) == {"ACC", "REM", "BWT"}
     sim = after["sim"]
-    assert sim["env_ids"] == {"h": "clfd/HelloWorld-h-v1", "e": "clfd/HelloWorld-e-v1"}
+    assert sim["env_ids"] == {"h": "clfd/HelloWorld-h-v2", "e": "clfd/HelloWorld-e-v2"}
     assert sim["mujoco"] and sim["mink"] and sim["fingerprint"]
     assert sim["rollouts"] == 3 * n
     # SG keeps task 0's model: its prediction after task 1 is the same, executed once.
@@ -89,7 +89,7 @@ def test_evaluate_again_uses_the_cache_and_resumes(tiny_run):
     assert again["success"] == first["success"]
 
     # An interrupted evaluation: drop one cached rollout; only that one runs again.
-    cache_path = tiny_run / CACHE_FILE
+    cache_path = RunDir(tiny_run).cache_path
     cache = json.loads(cache_path.read_text())
     cache["entries"].pop(next(iter(cache["entries"])))
     cache_path.write_text(json.dumps(cache))

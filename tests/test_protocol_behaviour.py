@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from clfd_bench.harness.config import resolve_config
-from clfd_bench.harness.protocol import predictions_path, run_training
+from clfd_bench.harness.protocol import run_training
+from clfd_bench.runs import RunDir
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "datasets"
 
@@ -52,11 +53,11 @@ def test_finetuning_forgets(runs):
 
 def test_hypernetwork_does_not_forget(runs):
     _, run_dir = runs["hn"]
-    with np.load(predictions_path(run_dir, 0)) as a, np.load(predictions_path(run_dir, 1)) as b:
-        right_after, later = a["task_0"], b["task_0"]
+    run = RunDir(run_dir)
+    right_after, later = run.load_predictions(0)[0], run.load_predictions(1)[0]
     drift = np.linalg.norm(later - right_after, axis=-1)  # metres, per sample
     assert np.median(drift) < 0.005 and drift.max() < 0.02, (np.median(drift), drift.max())
     ft_dir = runs["ft"][1]
-    with np.load(predictions_path(ft_dir, 0)) as a, np.load(predictions_path(ft_dir, 1)) as b:
-        ft_drift = np.linalg.norm(b["task_0"] - a["task_0"], axis=-1)
+    ft = RunDir(ft_dir)
+    ft_drift = np.linalg.norm(ft.load_predictions(1)[0] - ft.load_predictions(0)[0], axis=-1)
     assert np.median(ft_drift) > 10 * np.median(drift)  # the tolerance is meaningful

@@ -9,10 +9,11 @@ import pytest
 import torch
 
 from clfd_bench.cli.main import main as cli_main
-from clfd_bench.harness.checkpoint import load_checkpoint
+from clfd_bench.harness.checkpoint import decode_checkpoint
 from clfd_bench.harness.config import resolve_config
 from clfd_bench.harness.predict import predict
-from clfd_bench.harness.protocol import RunMismatchError, predictions_path, run_training
+from clfd_bench.harness.protocol import RunMismatchError, run_training
+from clfd_bench.runs import RunDir
 
 pytestmark = pytest.mark.usefixtures("data_dir")
 
@@ -53,9 +54,9 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
     from clfd_bench.data import load_dataset
 
     ds = load_dataset("helloworld")
-    with np.load(predictions_path(tmp_path, 1)) as npz:
-        assert sorted(npz.files) == ["task_0", "task_1"]
-        saved = npz["task_0"]
+    preds = RunDir(tmp_path).load_predictions(1)
+    assert sorted(preds) == [0, 1]
+    saved = preds[0]
     assert saved.shape == (8, 1000, 2)
     again = predict(tmp_path, 0, ds[0].demos[:, 0], ds[0].times)
     assert np.allclose(again, saved, atol=1e-12)
@@ -63,7 +64,7 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
     # the checkpoint holds tensors and plain data only
     obj = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
     assert set(obj) == {"format", "header", "tensors"}
-    header, tensors = load_checkpoint(tmp_path / "checkpoint.pt")
+    header, tensors = decode_checkpoint(RunDir(tmp_path).read_checkpoint())
     assert header["parts"]["position"]["num_tasks"] == 2
     assert any(k.startswith("position/memory_demos_") for k in tensors)
 
@@ -101,14 +102,23 @@ def test_killed_run_resumes_after_last_finished_task(tmp_path):
     assert resumed["train_time_s"][0] == partial["train_time_s"][0]
 
 
-def test_keys_added_by_other_tools_survive_a_resumed_run(tmp_path):
+def test_results_keep_other_keys_but_drop_execution_of_a_smaller_matrix(tmp_path):
+    """A resumed run that learns one more task keeps keys other tools added, but not the
+    execution fields of the smaller matrix (a reader would take them for the run's); the
+    same run rewritten without learning more keeps its execution fields."""
+    run = RunDir(tmp_path)
     run_training(_smoke("sg", tasks=1), tmp_path, threads=1, log=None)
-    path = tmp_path / "results.json"
-    results = json.loads(path.read_text())
+    results = run.load_results()
+    results["note"] = "added by a user"
     results["sim_accuracy"] = [[1.0]]
-    path.write_text(json.dumps(results))
+    results["sim"] = {"evaluated_tasks": 1}
+    run.write_training_results(results)
+    same = run_training(_smoke("sg", tasks=1), tmp_path, threads=1, log=None)
+    assert same["sim_accuracy"] == [[1.0]] and same["note"] == "added by a user"
     again = run_training(_smoke("sg", tasks=2), tmp_path, threads=1, log=None)
-    assert again["sim_accuracy"] == [[1.0]] and again["tasks_done"] == 2
+    assert again["tasks_done"] == 2 and again["note"] == "added by a user"
+    assert "sim_accuracy" not in again and "sim" not in again
+    assert "sim_accuracy" not in run.load_results()
 
 
 def test_other_config_in_the_same_directory_is_refused(tmp_path):
@@ -123,8 +133,7 @@ def test_pose_run_joins_position_and_orientation(tmp_path):
                            log=None)
     assert set(results["num_params_by_part"]) == {"position", "orientation"}
     assert "quaternion" in results["errors"] and "quaternion" in results["accuracy"]
-    with np.load(predictions_path(tmp_path, 0)) as npz:
-        pred = npz["task_0"]
+    pred = RunDir(tmp_path).load_predictions(0)[0]
     assert pred.shape == (9, 1000, 7)
     assert np.allclose(np.linalg.norm(pred[..., 3:], axis=-1), 1.0)
 

@@ -69,17 +69,24 @@ def format_failures(sim: dict[str, Any]) -> str:
 
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.execution.evaluate import evaluate_run
-    from clfd_bench.execution.saved_run import read_results
+    from clfd_bench.runs import RunDir, RunLockedError
 
+    run = RunDir(args.run_dir)
+    if not run.results_path.is_file():
+        print(f"clfd-bench evaluate: error: {run.results_path} not found: RUN_DIR must be a "
+              "directory written by `clfd-bench train`", file=sys.stderr)
+        return 2
     try:
-        if args.rerun:
-            from clfd_bench.viz.rerun_log import RolloutLogger
+        with run.lock(f"clfd-bench evaluate {args.run_dir}"):
+            if args.rerun:
+                from clfd_bench.viz.rerun_log import RolloutLogger
 
-            with RolloutLogger(args.rerun, recording_name=f"evaluate {args.run_dir}") as logger:
-                fields = evaluate_run(args.run_dir, observer=logger, force=args.force)
-        else:
-            fields = evaluate_run(args.run_dir, force=args.force, workers=args.workers)
-    except (FileNotFoundError, ValueError, KeyError) as exc:
+                with RolloutLogger(args.rerun,
+                                   recording_name=f"evaluate {args.run_dir}") as logger:
+                    fields = evaluate_run(args.run_dir, observer=logger, force=args.force)
+            else:
+                fields = evaluate_run(args.run_dir, force=args.force, workers=args.workers)
+    except (FileNotFoundError, ValueError, KeyError, RunLockedError) as exc:
         print(f"clfd-bench evaluate: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
@@ -87,7 +94,7 @@ def _run(args: argparse.Namespace) -> int:
         out["failure_counts"] = fields["sim"]["failure_counts"]
         print(json.dumps(out))
     else:
-        print(format_summary(read_results(args.run_dir), fields))
+        print(format_summary(run.load_results(), fields))
         if args.rerun:
             print(f"rerun log: {args.rerun} (open with `rerun {args.rerun}`)")
     return 0

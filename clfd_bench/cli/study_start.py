@@ -13,14 +13,14 @@ __all__ = ["register"]
 
 def _labelled_runs(run_dirs: list[str]) -> dict[str, Path]:
     """``{label: Path}``; label = the run's method (``sg``, ``sg#2`` for a second SG run)."""
-    from clfd_bench.leaderboard.grid import read_results
+    from clfd_bench.runs import RunDir
     from clfd_bench.studies.start_robustness import run_tasks
 
     runs: dict[str, Path] = {}
     for d in run_dirs:
         path = Path(d)
         run_tasks(path)  # raises ValueError saying what is wrong and what to run
-        label = read_results(path)["config"]["method"]
+        label = RunDir(path).load_results()["config"]["method"]
         base, n = label, 1
         while label in runs:
             n += 1

@@ -7,6 +7,10 @@ Writes ``OUT/results.json``, ``OUT/checkpoint.pt`` and ``OUT/predictions/after_t
 interrupted run after its last finished task. Hyperparameters come from
 ``baselines/<method>.toml``; ``--set key=value`` overrides any of them (``--set lr=1e-3``,
 ``--set orientation.iterations=500``), and ``--show-config`` prints what a run would use.
+
+Exit codes: 0 done; 2 a bad input (config value, option, dataset file, ``--out``), found
+before anything is created or trained, printed as one line; 1 training diverged (one line;
+the tasks finished before stay in ``--out``).
 """
 
 from __future__ import annotations
@@ -79,11 +83,38 @@ def _sim_hook(out: str, workers: int, quiet: bool):
     return after_task
 
 
+def _finish_execution(run, tasks_done: int, workers: int) -> dict:
+    """Executes what the per-task step left undone (a run killed while executing its last
+    task, or trained before with --no-sim); nothing when every prediction was executed by
+    this simulator. Returns the execution fields of ``results.json``."""
+    from clfd_bench.execution.evaluate import evaluate_run
+    from clfd_bench.execution.fingerprint import sim_fingerprint
+    from clfd_bench.runs import SIM_KEYS
+
+    if run.status(tasks_done, sim=True, fingerprint=sim_fingerprint()).state == "done":
+        results = run.load_results()
+        return {k: results[k] for k in SIM_KEYS if k in results}
+    return evaluate_run(run.path, workers=workers)
+
+
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.config import ConfigError, resolve_config
+    from clfd_bench.harness.loop import TrainingDivergedError
     from clfd_bench.harness.protocol import RunMismatchError, run_training
+    from clfd_bench.harness.validate import (
+        check_count,
+        check_dataset,
+        check_env_count,
+        check_out_dir,
+    )
     from clfd_bench.methods import UnknownMethodError
 
+    # Validation at the edge: the checks up to check_dataset run before any folder is created
+    # or any training starts; a failure is one line on stderr and exit 2 (cli/main.py).
+    check_count("--threads", args.threads)
+    check_count("--sim-workers", args.sim_workers)
+    if args.threads is None:
+        check_env_count("CLFD_THREADS")
     try:
         config = resolve_config(
             args.method, args.dataset, args.profile, seed=args.seed, order=args.order,
@@ -98,22 +129,33 @@ def _run(args: argparse.Namespace) -> int:
     if not args.out:
         print("clfd-bench train: error: --out DIR is required", file=sys.stderr)
         return 2
+    check_out_dir(args.out)
+    check_dataset(config.dataset, config.order)
+    from clfd_bench.procs import die_with_parent_from_env
+    from clfd_bench.runs import RunDir, RunLockedError
+
+    die_with_parent_from_env()  # started by a grid: end with it, even if it is SIGKILLed
+    run = RunDir(args.out)
     sim_hook = None if args.no_sim else _sim_hook(args.out, args.sim_workers, args.quiet)
     try:
-        results = run_training(
-            config, args.out, threads=args.threads,
-            log=None if args.quiet else print, keep_checkpoints=args.keep_checkpoints,
-            after_task=sim_hook,
-        )
-    except RunMismatchError as exc:
+        with run.lock(f"clfd-bench train --method {args.method} --dataset {args.dataset} "
+                      f"--seed {args.seed} --out {args.out}"):
+            results = run_training(
+                config, args.out, threads=args.threads,
+                log=None if args.quiet else print, keep_checkpoints=args.keep_checkpoints,
+                after_task=sim_hook,
+            )
+            if sim_hook is not None:
+                results.update(_finish_execution(run, results["tasks_done"], args.sim_workers))
+    except (RunMismatchError, RunLockedError) as exc:
         print(f"clfd-bench train: error: {exc}", file=sys.stderr)
         return 2
-    if sim_hook is not None:
-        # run_training rewrites results.json at the end; put the (cached) execution back.
-        from clfd_bench.execution.evaluate import evaluate_run
-
-        fields = evaluate_run(args.out, workers=args.sim_workers)
-        results.update(fields)
+    except TrainingDivergedError as exc:  # exit 1: the run failed; its finished tasks stay
+        kept = (f"tasks 0..{exc.task - 1} stay in {args.out}" if exc.task > 0
+                else "no task was finished")
+        print(f"clfd-bench train: error: {exc}; {kept} (another lr needs another --out)",
+              file=sys.stderr)
+        return 1
     cl = results["cl_metrics"]
     if cl and not args.quiet:
         shown = ", ".join(f"{k} {'n/a' if v is None else format(v, '.3f')}"

@@ -5,11 +5,11 @@ executes the saved prediction and writes ``success``, ``sim_accuracy``, ``sim_cl
 a ``sim`` block (provenance, tracking errors, failure reasons and kinds, their counts) into the
 run's ``results.json`` (atomically, every other key kept).
 
-Re-running is cheap: results are cached in ``RUN_DIR/sim_cache.json``
-(:mod:`clfd_bench.execution.cache`), valid for one simulator fingerprint. A run whose old tasks'
-predictions do not change (SG, HN, CHN) executes each distinct prediction once, a killed
-evaluation resumes where it stopped, and any change to the simulator invalidates the cache by
-itself. ``force=True`` ignores it.
+Re-running is cheap: results are cached in ``RUN_DIR/sim_cache.json`` (keys:
+:mod:`clfd_bench.execution.cache`; the file: :class:`clfd_bench.runs.RunDir`), valid for one
+simulator fingerprint. A run whose old tasks' predictions do not change (SG, HN, CHN) executes
+each distinct prediction once, a killed evaluation resumes where it stopped, and any change to
+the simulator invalidates the cache by itself. ``force=True`` ignores it.
 """
 
 from __future__ import annotations
@@ -22,26 +22,14 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from clfd_bench.execution.cache import (
-    CACHE_FILE,
-    load_cache,
-    nonfinite_summary,
-    prediction_key,
-    save_cache,
-)
+from clfd_bench.execution.cache import nonfinite_summary, prediction_key
 from clfd_bench.execution.env_pool import get_env
 from clfd_bench.execution.execute import ExecResult, execute
 from clfd_bench.execution.fingerprint import sim_fingerprint, sim_provenance
-from clfd_bench.execution.saved_run import (
-    RESULTS_FILE,
-    SavedRun,
-    load_run,
-    load_run_predictions,
-    read_results,
-)
+from clfd_bench.execution.saved_run import SavedRun, load_run, load_run_predictions
 from clfd_bench.execution.scoring import failure_counts, sim_fields
-from clfd_bench.io import atomic_write_json
 from clfd_bench.progress import progress
+from clfd_bench.runs import RunDir
 
 __all__ = ["RolloutObserver", "evaluate_run"]
 
@@ -57,6 +45,9 @@ def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, 
 def _worker_init() -> None:
     import os
 
+    from clfd_bench.procs import die_with_parent
+
+    die_with_parent()  # a killed evaluation leaves no worker behind
     os.environ.setdefault("CLFD_NO_PROGRESS", "1")
     try:
         import torch
@@ -124,7 +115,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
     run = load_run(run_dir)
     run_dir, dataset, names, m = run.path, run.dataset, run.task_names, run.num_learned
     if m == 0:
-        raise ValueError(f"{run_dir / RESULTS_FILE} has no finished task to evaluate; train "
+        raise ValueError(f"{RunDir(run_dir).results_path} has no finished task to evaluate; train "
                          "at least one task first")
     env_ids = _env_ids(dataset, names[:m])
     if not any(env_ids):
@@ -132,8 +123,8 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
                          "execute")
 
     fingerprint = sim_fingerprint()
-    cache_path = run_dir / CACHE_FILE
-    cache = {} if force else load_cache(cache_path, fingerprint)
+    store = RunDir(run_dir)
+    cache = {} if force else store.load_cache(fingerprint)
     # Every evaluation point -> its key; the distinct keys still to execute -> their job.
     points: list[tuple[int, int, int, str, np.ndarray]] = []
     jobs: dict[str, tuple[str, str, int, np.ndarray, float | None]] = {}
@@ -163,7 +154,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
         cache[key] = summary
         wall += seconds
         if time.monotonic() - last_save > 5.0:
-            save_cache(cache_path, fingerprint, cache)
+            store.save_cache(fingerprint, cache)
             last_save = time.monotonic()
 
     bar = progress(total=len(jobs), desc=f"sim {run_dir.name}", unit="rollout")
@@ -187,7 +178,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
                     bar.update(1)
     finally:
         bar.close()
-        save_cache(cache_path, fingerprint, cache)
+        store.save_cache(fingerprint, cache)
 
     success: list[list[list[bool] | None]] = [[None] * m for _ in range(m)]
     track: list[list[list[float | None] | None]] = [[None] * m for _ in range(m)]
@@ -221,10 +212,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
         "failure_counts": failure_counts(kinds),
     })
     fields["sim"] = sim
-    # Re-read just before writing, so keys another process updated meanwhile are kept.
-    latest = read_results(run_dir)
-    latest.update(fields)
-    atomic_write_json(run_dir / RESULTS_FILE, latest)
+    store.write_sim_results(fields)
     return fields
 
 

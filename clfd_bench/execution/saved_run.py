@@ -1,21 +1,20 @@
-"""Reading what ``clfd-bench train`` saved in a run directory: ``results.json`` and the
-predictions after each task (the execution layer's view of a run)."""
+"""What ``clfd-bench train`` saved in a run directory, as the execution layer sees it: the
+learned tasks and their predictions after each task (read through
+:class:`clfd_bench.runs.RunDir`)."""
 
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["PREDICTIONS_DIR", "RESULTS_FILE", "SavedRun", "load_run", "load_run_predictions",
-           "read_results"]
+from clfd_bench.runs import RunDir
 
-RESULTS_FILE = "results.json"
-PREDICTIONS_DIR = "predictions"
+__all__ = ["SavedRun", "load_run", "load_run_predictions"]
+
 
 @dataclasses.dataclass(frozen=True)
 class SavedRun:
@@ -52,34 +51,19 @@ class SavedRun:
         return [np.asarray(ds.tasks[j].demos) for j in range(self.num_learned)]
 
 
-def read_results(run_dir: str | Path) -> dict[str, Any]:
-    """``RUN_DIR/results.json``.
-
-    Raises:
-        FileNotFoundError: it does not exist (the message says what RUN_DIR must be).
-    """
-    path = Path(run_dir) / RESULTS_FILE
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} not found: RUN_DIR must be a directory written by "
-                                "`clfd-bench train` (it holds results.json)")
-    with open(path, encoding="utf-8") as fh:
-        return json.load(fh)
-
-
 def load_run(run_dir: str | Path) -> SavedRun:
     """Reads a run directory's ``results.json`` into a :class:`SavedRun`."""
     run_dir = Path(run_dir)
-    results = read_results(run_dir)
+    where = RunDir(run_dir).results_path
+    results = RunDir(run_dir).load_results()
     tasks = results.get("tasks")
     if not tasks:
-        raise ValueError(f"{run_dir / RESULTS_FILE} has no 'tasks'; was it written by "
-                         "`clfd-bench train`?")
+        raise ValueError(f"{where} has no 'tasks'; was it written by `clfd-bench train`?")
     names = [t["name"] if isinstance(t, Mapping) else str(t) for t in tasks]
     cfg = results.get("config") or {}
     dataset = cfg.get("dataset") or results.get("dataset")
     if not dataset:
-        raise ValueError(f"{run_dir / RESULTS_FILE} names no dataset (config.dataset); cannot "
-                         "pick envs")
+        raise ValueError(f"{where} names no dataset (config.dataset); cannot pick envs")
     if isinstance(results.get("tasks_done"), int):
         done = int(results["tasks_done"])
     else:
@@ -90,34 +74,7 @@ def load_run(run_dir: str | Path) -> SavedRun:
 
 
 def load_run_predictions(run_dir: str | Path, after_task: int) -> dict[int, np.ndarray]:
-    """The saved predictions of a run after learning task ``after_task``.
-
-    Reads ``RUN_DIR/predictions/after_task_{i}.npz`` (written by the training protocol).
-
-    Returns:
-        task index ``j`` (``j <= after_task``) -> ``[N, T, D]`` float64 in data units.
-
-    Raises:
-        FileNotFoundError: the file is missing (the message says how to regenerate it).
-    """
-    path = Path(run_dir) / PREDICTIONS_DIR / f"after_task_{after_task}.npz"
-    if not path.is_file():
-        raise FileNotFoundError(
-            f"{path} not found: the run saved no predictions after task {after_task}; re-run "
-            "`clfd-bench train` with the same arguments (it resumes and rewrites them)")
-    out: dict[int, np.ndarray] = {}
-    with np.load(path, allow_pickle=False) as npz:
-        for key in npz.files:
-            j = _task_key(key)
-            if j is not None:
-                out[j] = np.asarray(npz[key], dtype=np.float64)
-    missing = [j for j in range(after_task + 1) if j not in out]
-    if missing:
-        raise ValueError(f"{path} holds no predictions of tasks {missing} (keys: {npz.files})")
-    return out
-
-
-def _task_key(key: str) -> int | None:
-    """Task index of an npz key "task_{j}" (or "{j}")."""
-    digits = key[5:] if key.startswith("task_") else key
-    return int(digits) if digits.isdigit() else None
+    """The saved predictions of a run after learning task ``after_task``: task index ``j``
+    (``j <= after_task``) -> ``[N, T, D]`` float64 in data units
+    (:meth:`clfd_bench.runs.RunDir.load_predictions`)."""
+    return RunDir(run_dir).load_predictions(after_task)

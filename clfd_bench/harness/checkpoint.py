@@ -1,32 +1,29 @@
 """Checkpoints: tensors plus a JSON header, safe to load (``torch.load(weights_only=True)``).
 
-A checkpoint file is ``torch.save({"header": <JSON text>, "tensors": {name: tensor}})``,
-written atomically. Loading never unpickles code, so a shared checkpoint cannot run
-anything. The header carries the plain data (config, progress, per-task normalisers).
+A checkpoint is the bytes of ``torch.save({"format", "header": <JSON text>, "tensors":
+{name: tensor}})``. Decoding never unpickles code, so a shared checkpoint cannot run
+anything. The header carries the plain data (config, progress, per-task normalisers). The
+run directory (:class:`clfd_bench.runs.RunDir`) stores and reads the bytes.
 """
 
 from __future__ import annotations
 
 import io
 import json
-import os
+import pickle
 from collections.abc import Mapping
 from typing import Any
 
 import torch
 from torch import Tensor
 
-from clfd_bench.io import atomic_write_bytes
-
-__all__ = ["CHECKPOINT_FORMAT", "load_checkpoint", "save_checkpoint"]
+__all__ = ["CHECKPOINT_FORMAT", "decode_checkpoint", "encode_checkpoint"]
 
 CHECKPOINT_FORMAT = "clfd-bench-checkpoint/1"
 
 
-def save_checkpoint(
-    path: str | os.PathLike[str], header: Mapping[str, Any], tensors: Mapping[str, Tensor]
-) -> None:
-    """Write ``header`` (JSON-serialisable) and ``tensors`` to ``path`` atomically."""
+def encode_checkpoint(header: Mapping[str, Any], tensors: Mapping[str, Tensor]) -> bytes:
+    """The bytes of a checkpoint of ``header`` (JSON-serialisable) and ``tensors``."""
     payload = {
         "format": CHECKPOINT_FORMAT,
         "header": json.dumps(dict(header), allow_nan=False),
@@ -34,16 +31,21 @@ def save_checkpoint(
     }
     buf = io.BytesIO()
     torch.save(payload, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
 
 
-def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, Tensor]]:
-    """Read a checkpoint written by :func:`save_checkpoint` -> ``(header, tensors)``.
+def decode_checkpoint(data: bytes, source: str = "checkpoint"
+                      ) -> tuple[dict[str, Any], dict[str, Tensor]]:
+    """``(header, tensors)`` of bytes written by :func:`encode_checkpoint`.
 
     Raises:
-        ValueError: the file is not a clfd-bench checkpoint.
+        ValueError: the bytes are not a clfd-bench checkpoint (``source`` names them).
     """
-    obj = torch.load(path, map_location="cpu", weights_only=True)
+    try:
+        obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+    except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
+        raise ValueError(f"{source} is not a readable clfd-bench checkpoint ({exc}); delete it "
+                         "to retrain the run from its first task") from None
     if not isinstance(obj, dict) or obj.get("format") != CHECKPOINT_FORMAT:
-        raise ValueError(f"{path} is not a clfd-bench checkpoint (format {CHECKPOINT_FORMAT})")
+        raise ValueError(f"{source} is not a clfd-bench checkpoint (format {CHECKPOINT_FORMAT})")
     return json.loads(obj["header"]), dict(obj["tensors"])

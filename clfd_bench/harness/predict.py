@@ -13,6 +13,7 @@ import numpy as np
 
 from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.protocol import load_learner
+from clfd_bench.runs import RunDir
 
 __all__ = ["predict"]
 
@@ -21,8 +22,7 @@ _CACHE: dict[tuple[str, float], Learner] = {}
 
 def _learner(run_dir: str | os.PathLike[str]) -> Learner:
     path = Path(run_dir).resolve()
-    ckpt = path / "checkpoint.pt"
-    key = (str(path), ckpt.stat().st_mtime if ckpt.exists() else -1.0)
+    key = (str(path), RunDir(path).checkpoint_mtime())
     if key not in _CACHE:
         _CACHE.clear()
         _CACHE[key] = load_learner(path)[0]

@@ -6,7 +6,8 @@
    to every part's model and train it with the one training loop;
 2. predict tasks ``0..i`` from each demo's start (in data units) and score them;
 3. write ``predictions/after_task_{i}.npz``, then ``checkpoint.pt`` (model + progress), then
-   ``results.json`` -- each atomically.
+   ``results.json`` -- each atomically, through the run directory's owner
+   (:class:`clfd_bench.runs.RunDir`).
 
 A run directory that already holds a checkpoint of the same configuration resumes after its
 last finished task and ends with the same results as an uninterrupted run; one with a
@@ -16,14 +17,11 @@ different configuration is refused.
 from __future__ import annotations
 
 import dataclasses
-import io
-import json
 import os
 import platform
 import sys
 from collections.abc import Callable
 from importlib import metadata
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,7 +29,7 @@ import torch
 
 from clfd_bench.data import load_dataset
 from clfd_bench.data.types import Dataset
-from clfd_bench.harness.checkpoint import load_checkpoint, save_checkpoint
+from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
 from clfd_bench.harness.config import RunConfig
 from clfd_bench.harness.evaluation import (
     metric_units,
@@ -42,24 +40,20 @@ from clfd_bench.harness.evaluation import (
 )
 from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.loop import warm_up
-from clfd_bench.io import atomic_write_bytes, atomic_write_json, json_safe
+from clfd_bench.io import json_safe
+from clfd_bench.runs import CHECKPOINT_FILE, RunDir
 
 __all__ = [
-    "CHECKPOINT_FILE",
-    "RESULTS_FILE",
     "SCHEMA_VERSION",
     "RunMismatchError",
     "available_cores",
     "default_threads",
     "load_learner",
-    "predictions_path",
     "run_training",
     "task_seed",
 ]
 
 SCHEMA_VERSION = 1
-RESULTS_FILE = "results.json"
-CHECKPOINT_FILE = "checkpoint.pt"
 
 
 class RunMismatchError(RuntimeError):
@@ -91,11 +85,6 @@ def default_threads() -> int:
 def task_seed(seed: int, task: int) -> int:
     """The RNG seed used while learning ``task`` of a run seeded with ``seed``."""
     return (int(seed) * 1_000_003 + int(task) * 7_919 + 17) % (2**63 - 1)
-
-
-def predictions_path(run_dir: str | os.PathLike[str], after_task: int) -> Path:
-    """``run_dir/predictions/after_task_{i}.npz``: arrays ``task_{j}`` ``[N, T, D]`` for j <= i."""
-    return Path(run_dir) / "predictions" / f"after_task_{after_task}.npz"
 
 
 def _versions() -> dict[str, str]:
@@ -187,33 +176,12 @@ def _results(config: RunConfig, ds: Dataset, state: dict, complete: bool,
         "cl_metrics": cl.get(primary, {}),
         "cl_metrics_primary": primary,
         "cl_metrics_by_metric": cl,
-        "predictions": [
-            str(predictions_path(".", i)).removeprefix("./") for i in range(done)
-        ],
+        "predictions": [RunDir.predictions_name(i) for i in range(done)],
         "checkpoint": CHECKPOINT_FILE,
         "provenance": provenance,
     })
 
 
-
-def _write_results(out: Path, results: dict[str, Any]) -> dict[str, Any]:
-    """Write ``results.json``, keeping keys other tools added (e.g. simulation results)."""
-    path = out / RESULTS_FILE
-    merged = dict(results)
-    if path.is_file():
-        try:
-            existing = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            existing = {}
-        merged.update({k: v for k, v in existing.items() if k not in results})
-    atomic_write_json(path, merged)
-    return merged
-
-
-def _save_predictions(path: Path, preds: list[np.ndarray]) -> None:
-    buf = io.BytesIO()
-    np.savez(buf, **{f"task_{j}": p for j, p in enumerate(preds)})
-    atomic_write_bytes(path, buf.getvalue())
 
 
 def _checkpoint_payload(learner: Learner) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
@@ -227,10 +195,8 @@ def _checkpoint_payload(learner: Learner) -> tuple[dict[str, Any], dict[str, tor
 
 def load_learner(run_dir: str | os.PathLike[str]) -> tuple[Learner, dict[str, Any]]:
     """Rebuild the trained model of a run from its checkpoint -> ``(learner, header)``."""
-    path = Path(run_dir) / CHECKPOINT_FILE
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist: {run_dir} is not a (started) run dir")
-    header, tensors = load_checkpoint(path)
+    run = RunDir(run_dir)
+    header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
     config = RunConfig.from_dict(header["config"])
     learner = Learner.from_config(config, header["dim"])
     for kind, part in learner.parts.items():
@@ -263,7 +229,8 @@ def run_training(
     Raises:
         RunMismatchError: ``out_dir`` holds a run with a different configuration.
     """
-    out = Path(out_dir)
+    run = RunDir(out_dir)
+    out = run.path
     threads = threads or default_threads()
     torch.set_num_threads(threads)
     ds = load_dataset(config.dataset, order=config.order)
@@ -278,9 +245,8 @@ def run_training(
     parts = list(learner.parts)
     state = _empty_state([t.name for t in tasks], metrics, parts)
     provenance = _provenance(config, ds, threads)
-    ckpt_path = out / CHECKPOINT_FILE
-    if ckpt_path.exists():
-        header, tensors = load_checkpoint(ckpt_path)
+    if run.has_checkpoint():
+        header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
         saved = header["config"]
         diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
         if diff:
@@ -341,21 +307,20 @@ def run_training(
             preds.append(pred)
             for metric, values in task_errors(tj, pred).items():
                 state["errors"][metric][i][j] = values
-        _save_predictions(predictions_path(out, i), preds)
+        run.save_predictions(i, preds)
         headers, tensors = _checkpoint_payload(learner)
         header = json_safe({"config": config.to_dict(), "dim": dim, "parts": headers,
                              "state": state, "provenance": provenance})
-        save_checkpoint(ckpt_path, header, tensors)
-        if keep_checkpoints:
-            save_checkpoint(out / "checkpoints" / f"after_task_{i}.pt", header, tensors)
+        run.write_checkpoint(encode_checkpoint(header, tensors),
+                             keep_as=i if keep_checkpoints else None)
         results = _results(config, ds, state, complete=i == n_tasks - 1, provenance=provenance)
-        _write_results(out, results)
+        run.write_training_results(results)
         if log:
             log(_summary_line(config, task.name, i, n_tasks, state, results))
         if after_task is not None:
             after_task(i)
     results = _results(config, ds, state, complete=True, provenance=provenance)
-    return _write_results(out, results)
+    return run.write_training_results(results)
 
 
 def _summary_line(config: RunConfig, name: str, i: int, n: int, state: dict,

@@ -5,6 +5,13 @@ Both run exactly the same command (``clfd-bench train ...``) with the same envir
 crashes is recorded in ``<run_dir>/failed.json`` with the end of its log and does not stop
 the grid.
 
+Local runs are child processes in their own process group, which the grid ends (with every
+process in it) when it stops for any reason it can see (an exception, Ctrl-C, SIGTERM); and
+each child asks the kernel to SIGKILL it when the grid process dies, so even ``kill -9`` of
+the grid leaves no training behind (:func:`clfd_bench.procs.die_with_parent`). The run
+directory's lock (:meth:`clfd_bench.runs.RunDir.lock`) makes a second trainer of the same run
+refuse to start in any case.
+
 Ray: each run is shipped to a worker as a tarball of its run directory (empty, or the
 checkpoints of a half-finished run), trained there in a temporary directory, and shipped
 back; the cluster needs no shared filesystem.
@@ -14,23 +21,26 @@ from __future__ import annotations
 
 import io
 import os
-import shutil
+import signal
 import subprocess
 import tarfile
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from clfd_bench.io import atomic_write_json
-from clfd_bench.leaderboard.grid import FAILED_FILE, RunSpec
+from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.procs import PARENT_ENV
+from clfd_bench.runs import RunDir
 
 __all__ = ["EXECUTORS", "RunOutcome", "execute_grid"]
 
-LOG_FILE = "train.log"
 _LOG_TAIL = 4000
+_CHILDREN: set[subprocess.Popen] = set()
+_CHILDREN_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -50,30 +60,47 @@ def _run_env() -> dict[str, str]:
     return env
 
 
+def end_children() -> None:
+    """SIGKILLs the process group of every running child (a grid that stops early)."""
+    with _CHILDREN_LOCK:
+        children = list(_CHILDREN)
+    for child in children:
+        try:
+            os.killpg(child.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
 def _run_command(argv: list[str], run_dir: Path) -> tuple[int, str]:
     """Run ``argv`` with its output appended to ``run_dir/train.log``; return (code, tail)."""
-    run_dir.mkdir(parents=True, exist_ok=True)
-    log_path = run_dir / LOG_FILE
-    with open(log_path, "ab") as log:
+    run = RunDir(run_dir)
+    with run.open_log() as log:
         log.write(f"\n$ {' '.join(argv)}\n".encode())
         log.flush()
-        code = subprocess.run(
-            argv, stdout=log, stderr=subprocess.STDOUT, env=_run_env(), check=False
-        ).returncode
-    tail = log_path.read_bytes()[-_LOG_TAIL:].decode("utf-8", "replace")
-    return code, tail
+        # Own session and process group; the child arms its death signal itself (no
+        # preexec_fn: it is unsafe in a threaded parent), given this process's pid.
+        env = {**_run_env(), PARENT_ENV: str(os.getpid())}
+        child = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                 start_new_session=True)
+        with _CHILDREN_LOCK:
+            _CHILDREN.add(child)
+        try:
+            code = child.wait()
+        finally:
+            with _CHILDREN_LOCK:
+                _CHILDREN.discard(child)
+    return code, run.log_tail(_LOG_TAIL)
 
 
 def _record(spec: RunSpec, root: Path, code: int, tail: str, seconds: float) -> RunOutcome:
-    failed = spec.run_dir(root) / FAILED_FILE
+    run = RunDir(spec.run_dir(root))
     if code == 0:
-        failed.unlink(missing_ok=True)
+        run.clear_failed()
         return RunOutcome(spec, True, None, seconds)
     lines = [ln for ln in tail.strip().splitlines() if ln.strip()]
     error = lines[-1] if lines else f"exit code {code}"
-    atomic_write_json(
-        failed, {"exit_code": code, "error": error, "log_tail": tail, "spec": spec.to_dict()}
-    )
+    run.mark_failed({"exit_code": code, "error": error, "log_tail": tail,
+                     "spec": spec.to_dict()})
     return RunOutcome(spec, False, error, seconds)
 
 
@@ -87,13 +114,30 @@ def _local(
     specs: list[RunSpec], root: Path, workers: int, on_done: Callable[[RunOutcome], None]
 ) -> list[RunOutcome]:
     outcomes = []
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+    previous = signal.getsignal(signal.SIGTERM)
+    main = threading.current_thread() is threading.main_thread()
+    if main:  # SIGTERM ends the grid like Ctrl-C: children first
+        signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    pool = ThreadPoolExecutor(max_workers=max(1, workers))
+    try:
         futures = [pool.submit(_local_one, spec, root) for spec in specs]
         for future in as_completed(futures):
             outcome = future.result()
             on_done(outcome)
             outcomes.append(outcome)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        end_children()
+        raise
+    finally:
+        pool.shutdown(wait=True)
+        if main:
+            signal.signal(signal.SIGTERM, previous)
     return outcomes
+
+
+def _raise_keyboard_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
 
 
 def _pack(directory: Path) -> bytes:
@@ -106,12 +150,22 @@ def _pack(directory: Path) -> bytes:
 
 
 def _unpack(payload: bytes, directory: Path) -> None:
+    """Extracts a run tarball into ``directory``, refusing anything but plain files and folders
+    inside it (with the "data" filter where Python has it, and our own check everywhere)."""
     directory.mkdir(parents=True, exist_ok=True)
+    root = directory.resolve()
     with tarfile.open(fileobj=io.BytesIO(payload), mode="r:gz") as tar:
-        try:
-            tar.extractall(directory, filter="data")
-        except TypeError:  # Python < 3.10.12 has no extraction filters; our own tarballs
-            tar.extractall(directory)  # noqa: S202
+        members = tar.getmembers()
+        for member in members:
+            target = (root / member.name).resolve()
+            if not (member.isfile() or member.isdir()) or (
+                    target != root and root not in target.parents):
+                raise ValueError(f"unsafe member {member.name!r} in a run tarball (only files "
+                                 "and folders inside the run directory are accepted)")
+        if hasattr(tarfile, "data_filter"):
+            tar.extractall(directory, members=members, filter="data")
+        else:  # Python < 3.10.12: no filters; the members were checked above
+            tar.extractall(directory, members=members)  # noqa: S202
 
 
 def _remote_train(spec_dict: dict, payload: bytes) -> tuple[int, str, bytes, float]:
@@ -160,9 +214,7 @@ def _ray(
                 run_dir.parent.mkdir(parents=True, exist_ok=True)
                 staging = Path(tempfile.mkdtemp(prefix=".incoming-", dir=run_dir.parent))
                 _unpack(payload, staging)
-                if run_dir.exists():
-                    shutil.rmtree(run_dir)
-                staging.rename(run_dir)
+                RunDir(run_dir).replace_with(staging)
             outcome = _record(spec, root, code, tail, seconds)
             on_done(outcome)
             outcomes.append(outcome)

@@ -3,12 +3,13 @@
 A run is identified by :class:`RunSpec`; its directory under the leaderboard's output is
 derived from the spec alone, so starting a leaderboard again finds finished runs and skips
 them, and a half-finished run resumes from its last finished task (the training command
-resumes by itself).
+resumes by itself). Whether a run is finished is the run directory's to say
+(:meth:`clfd_bench.runs.RunDir.status`): every task trained and, with simulation, every
+prediction executed by the current simulator.
 """
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from dataclasses import asdict, dataclass
@@ -16,11 +17,11 @@ from itertools import product
 from pathlib import Path
 from typing import Any
 
-__all__ = ["RunSpec", "make_grid", "read_results", "run_status"]
+from clfd_bench.runs import RunDir
 
-FAILED_FILE = "failed.json"
+__all__ = ["RunSpec", "make_grid", "run_status"]
+
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
-RESULTS_FILE = "results.json"
 
 
 @dataclass(frozen=True, order=True)
@@ -137,24 +138,13 @@ def make_grid(
     ]
 
 
-def read_results(run_dir: Path) -> dict[str, Any] | None:
-    """The run's ``results.json`` or None if there is none (or it is unreadable)."""
-    path = Path(run_dir) / RESULTS_FILE
-    try:
-        return json.loads(path.read_text())
-    except (FileNotFoundError, json.JSONDecodeError):
-        return None
-
-
 def run_status(spec: RunSpec, root: Path) -> str:
-    """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``."""
-    run_dir = spec.run_dir(root)
-    results = read_results(run_dir)
-    if results is not None and results.get("complete"):
-        learned = len(results.get("train_time_s", []))
-        # With simulation a run is done once its predictions were executed too.
-        if learned >= spec.num_tasks() and (not spec.sim or results.get("success") is not None):
-            return "done"
-    if (run_dir / FAILED_FILE).is_file():
-        return "failed"
-    return "partial" if run_dir.exists() else "missing"
+    """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``
+    (:meth:`clfd_bench.runs.RunDir.status`; with simulation, executions by another simulator
+    version do not count)."""
+    fingerprint = None
+    if spec.sim:
+        from clfd_bench.execution.fingerprint import sim_fingerprint
+
+        fingerprint = sim_fingerprint()
+    return RunDir(spec.run_dir(root)).status(spec.num_tasks(), spec.sim, fingerprint).state

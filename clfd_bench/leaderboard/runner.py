@@ -8,12 +8,51 @@ from pathlib import Path
 
 from clfd_bench.leaderboard.aggregate import MethodRow, RunRecord, aggregate
 from clfd_bench.leaderboard.executors import RunOutcome, execute_grid
-from clfd_bench.leaderboard.grid import FAILED_FILE, RunSpec, make_grid, read_results, run_status
+from clfd_bench.leaderboard.grid import RunSpec, make_grid, run_status
 from clfd_bench.leaderboard.plots import plot_all
 from clfd_bench.leaderboard.report import write_tables
 from clfd_bench.progress import progress
+from clfd_bench.runs import RunDir, RunFileError, exclusive
 
-__all__ = ["GridRun", "LeaderboardResult", "collect", "run_leaderboard", "run_specs"]
+__all__ = [
+    "GRID_ARG_NAMES",
+    "GridRun",
+    "LeaderboardResult",
+    "collect",
+    "run_leaderboard",
+    "run_specs",
+    "validate_plan",
+]
+
+GRID_ARG_NAMES = {"seed": "--seeds", "order": "--orders"}
+"""The grid options run-level values come from, named in plan errors."""
+
+
+def validate_plan(specs: list[RunSpec], out: Path) -> None:
+    """Check a whole grid before anything is launched or any folder created: ``out`` is
+    usable, every run's names are registry names (so its directory stays below ``out``),
+    every run's configuration resolves and passes every range check, and every dataset (in
+    every order) loads with good files.
+
+    Raises:
+        ConfigError, UnknownMethodError, InputError, DatasetError: one line naming the bad
+            value and where it came from (``clfd-bench`` prints it and exits with code 2).
+    """
+    from clfd_bench.harness.config import ConfigError, resolve_config
+    from clfd_bench.harness.validate import check_dataset, check_out_dir
+
+    out = Path(out)
+    check_out_dir(out)
+    runs_root = (out / "runs").resolve()
+    for spec in specs:
+        resolve_config(
+            spec.method, spec.dataset, spec.profile, seed=spec.seed, order=spec.order,
+            node=spec.node, tasks=spec.tasks, overrides=spec.settings, arg_names=GRID_ARG_NAMES,
+        )  # fmt: skip
+        if not spec.run_dir(out).resolve().is_relative_to(runs_root):  # pragma: no cover
+            raise ConfigError(f"run {spec.name!r} would be written outside {out}/runs")
+    for dataset, order in sorted({(s.dataset, s.order) for s in specs}):
+        check_dataset(dataset, order)
 
 
 @dataclass
@@ -31,18 +70,19 @@ class LeaderboardResult:
 
 def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
     """The current state of every run of the grid, read from disk."""
-    import json
-
     records = []
     for spec in specs:
+        run = RunDir(spec.run_dir(out))
         status = run_status(spec, out)
         error = None
         if status == "failed":
+            error = str((run.failure() or {}).get("error", "failed (no readable failed.json)"))
+        results = None
+        if status == "done":
             try:
-                error = json.loads((spec.run_dir(out) / FAILED_FILE).read_text())["error"]
-            except (OSError, ValueError, KeyError):
-                error = "failed (no readable failed.json)"
-        results = read_results(spec.run_dir(out)) if status == "done" else None
+                results = run.read_results()
+            except RunFileError as exc:  # changed on disk since the status was read
+                status, error = "failed", str(exc)
         records.append(RunRecord(spec, status, results, error))
     return records
 
@@ -73,6 +113,13 @@ def run_specs(
     ``failed.json`` and the grid goes on. Runs go to ``out/runs/<spec.name>``.
     """
     out = Path(out)
+    validate_plan(specs, out)  # before anything is launched or created
+    with exclusive(out, f"clfd-bench {desc}"):  # one grid at a time on an output folder
+        return _run_specs(specs, out, executor, workers, address, desc)
+
+
+def _run_specs(specs: list[RunSpec], out: Path, executor: str, workers: int,
+               address: str | None, desc: str) -> GridRun:
     todo = [s for s in specs if run_status(s, out) != "done"]
     skipped = [s for s in specs if s not in todo]
     failed: list[RunOutcome] = []
@@ -112,10 +159,15 @@ def run_leaderboard(
     Writes into ``out``: ``runs/...`` (one directory per run), ``leaderboard.md``, ``.csv``,
     ``.json`` and the figures (PNG).
     """
+    from clfd_bench.harness.validate import InputError, check_count
     from clfd_bench.methods import get_method_class
 
     for method in methods:
         get_method_class(method)  # an unknown name fails here, listing the valid ones
+    for flag, values in (("--methods", methods), ("--seeds", seeds), ("--orders", orders)):
+        if not values:
+            raise InputError(f"{flag} is empty; a grid needs at least one value")
+    check_count("--workers", workers)
     start = time.perf_counter()
     out = Path(out)
     specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim)

@@ -47,12 +47,13 @@ from clfd_bench.data.types import Task
 from clfd_bench.harness.config import RunConfig, resolve_config
 from clfd_bench.harness.learner import Learner, PartLearner
 from clfd_bench.harness.loop import solver_spec
-from clfd_bench.harness.protocol import CHECKPOINT_FILE, load_learner
-from clfd_bench.io import atomic_write_json, atomic_write_text, sha256_file
+from clfd_bench.harness.protocol import load_learner
+from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.learning.mlp import num_weights
 from clfd_bench.learning.node import VectorField
 from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.tangent import quat_log_relative
+from clfd_bench.runs import RunDir
 
 __all__ = [
     "EVAL_KEYS",
@@ -216,13 +217,14 @@ def load_run(run_dir: str | os.PathLike[str]) -> tuple[Learner, list[Task]]:
         FileNotFoundError: no checkpoint (says what to run).
         ValueError: the run is not an HN/CHN run or its dataset is not in the paper's table.
     """
-    run = Path(run_dir)
-    if not (run / CHECKPOINT_FILE).is_file():
+    run = RunDir(run_dir)
+    if not run.has_checkpoint():
         raise FileNotFoundError(
-            f"{run / CHECKPOINT_FILE} does not exist: train the run first, e.g. "
-            f"`clfd-bench train --method hn --dataset helloworld --profile paper --out {run}`"
+            f"{run.checkpoint_path} does not exist: train the run first, e.g. "
+            f"`clfd-bench train --method hn --dataset helloworld --profile paper --out "
+            f"{run.path}`"
         )
-    learner, _header = load_learner(run)
+    learner, _header = load_learner(run.path)
     config: RunConfig = learner.config
     _check_method(config.method)
     _check_dataset(config.dataset)
@@ -733,7 +735,7 @@ def run_study(
                 apply_eval_overrides(learner, overrides)
                 method, dataset, source = learner.config.method, learner.config.dataset, a
                 settings = {**base, "source": source, "overrides": list(overrides),
-                            "checkpoint_sha256": sha256_file(Path(a) / CHECKPOINT_FILE)}
+                            "checkpoint_sha256": RunDir(a).checkpoint_sha256()}
                 loaded: tuple[Learner, list[Task]] | None = (learner, tasks)
             else:
                 method, dataset, source = a, b, "built"

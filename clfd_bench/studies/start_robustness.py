@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from clfd_bench.io import atomic_write_json, sha256_file
+from clfd_bench.io import atomic_write_json
+from clfd_bench.runs import RunDir, RunFileError
 
 __all__ = [
     "BINS_CM", "DIVERGED_M", "LARGE_M", "StartRecord", "StudyConfig", "approach_path",
@@ -252,7 +253,7 @@ def execute(env, demo: int, demo_start: np.ndarray, prediction: np.ndarray,
 # --------------------------------------------------------------------------- the study
 def _cache_key(run_dir: Path, task: str, demo: int, cfg: StudyConfig) -> dict[str, Any]:
     return {"version": _CACHE_VERSION, "run": str(run_dir.resolve()),
-            "checkpoint_sha256": sha256_file(run_dir / "checkpoint.pt"), "task": task,
+            "checkpoint_sha256": RunDir(run_dir).checkpoint_sha256(), "task": task,
             "demo": demo, "seed": cfg.seed, "radius": cfg.radius,
             "approach_speed": cfg.approach_speed}
 
@@ -283,10 +284,12 @@ def study_tasks(runs: dict[str, Path]) -> list[str]:
 
 def run_tasks(run_dir: Path) -> list[str]:
     """The tasks a finished run learned, in its order (raises ValueError naming the problem)."""
-    from clfd_bench.leaderboard.grid import read_results
-
-    results = read_results(run_dir)
-    if results is None or not (Path(run_dir) / "checkpoint.pt").is_file():
+    run = RunDir(run_dir)
+    try:
+        results = run.read_results()
+    except RunFileError as exc:
+        raise ValueError(str(exc)) from None
+    if results is None or not run.has_checkpoint():
         raise ValueError(f"{run_dir} is not a trained run (no results.json/checkpoint.pt); train "
                          f"it with `clfd-bench train --method M --dataset {DATASET} --profile "
                          f"fast --no-sim --out {run_dir}` or pass --methods to train here")

@@ -1,0 +1,187 @@
+"""Runs and grids killed with SIGKILL at chosen moments, then started again, end with the same
+results as uninterrupted ones; a killed grid leaves no process behind; a run directory is never
+written by two processes.
+
+Every kill here is a real SIGKILL of a real process (the CLI in a subprocess). Moments: while
+training (after the first task's files are written), in the middle of an atomic write (the
+temporary file complete, not yet renamed: ``CLFD_KILL_BEFORE_REPLACE``), while the last task's
+predictions are executed, and the grid's parent process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from clfd_bench.runs import LOCK_FILE, RunDir
+
+TRAIN = ["train", "--method", "hn", "--dataset", "helloworld", "--profile", "smoke",
+         "--tasks", "2", "--quiet"]
+# Varies between an uninterrupted and a resumed run: wall times, what was cached, and what is
+# computed from times (TE, and CL_score / CL_stability, which average TE in; the rank by them).
+_TIMING = {"train_time_s", "train_time_s_by_part", "iterations_per_s_by_part", "wall_s",
+           "rollout_wall_s", "evaluated_at", "rollouts_executed", "rollouts_cached", "TE",
+           "CL_score", "CL_stability", "rank"}
+
+
+def _cli(*args: str, env: dict[str, str] | None = None, **kw) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args],
+                            env={**os.environ, "CLFD_NO_PROGRESS": "1", **(env or {})},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, **kw)
+
+
+def _finish(*args: str) -> subprocess.CompletedProcess:
+    proc = _cli(*args)
+    out, err = proc.communicate(timeout=900)
+    assert proc.returncode == 0, err[-2000:]
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+def _kill_when(proc: subprocess.Popen, ready, timeout: float = 600.0) -> None:
+    """SIGKILLs the process group of ``proc`` as soon as ``ready()`` is true."""
+    t0 = time.monotonic()
+    while not ready():
+        assert proc.poll() is None, f"finished before the kill point: {proc.stderr.read()}"
+        assert time.monotonic() - t0 < timeout, "kill point never reached"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+
+
+def _comparable(value):
+    """``value`` without what legitimately differs between runs (timings, cache counts)."""
+    if isinstance(value, dict):
+        return {k: _comparable(v) for k, v in value.items() if k not in _TIMING}
+    if isinstance(value, list):
+        return [_comparable(v) for v in value]
+    return value
+
+
+def _results(run_dir: Path) -> dict:
+    return _comparable(RunDir(run_dir).load_results())
+
+
+def _temp_files(run_dir: Path) -> list[Path]:
+    return [p for p in Path(run_dir).rglob(".*.tmp")]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> dict:
+    """An uninterrupted run (2 tasks, executed in simulation)."""
+    out = tmp_path_factory.mktemp("reference")
+    _finish(*TRAIN, "--out", str(out))
+    results = _results(out)
+    assert results["tasks_done"] == 2 and results["sim"]["evaluated_tasks"] == 2
+    return results
+
+
+def test_kill_while_training_then_resume(reference, tmp_path):
+    run = RunDir(tmp_path / "run")
+    proc = _cli(*TRAIN, "--out", str(run.path))
+    _kill_when(proc, lambda: run.predictions_path(0).is_file())
+    status = run.status(2, sim=True)
+    assert status.state == "partial", status
+    _finish(*TRAIN, "--out", str(run.path))
+    assert _results(run.path) == reference
+    assert not _temp_files(run.path)
+
+
+@pytest.mark.parametrize("file_name, nth", [("results.json", 2), ("checkpoint.pt", 2),
+                                            ("sim_cache.json", 2)])
+def test_kill_in_the_middle_of_a_write_then_resume(reference, tmp_path, file_name, nth):
+    """Killed with the new file complete in its temporary copy and the old one in place."""
+    run = RunDir(tmp_path / "run")
+    proc = _cli(*TRAIN, "--out", str(run.path),
+                env={"CLFD_KILL_BEFORE_REPLACE": f"{file_name}:{nth}"})
+    proc.communicate(timeout=900)
+    assert proc.returncode == -signal.SIGKILL
+    assert _temp_files(run.path), "the kill should leave the temporary file"
+    assert run.status(2, sim=True).state == "partial"
+    _finish(*TRAIN, "--out", str(run.path))
+    assert _results(run.path) == reference
+    assert not _temp_files(run.path)  # the next owner of the run removed them
+
+
+def test_kill_while_executing_the_last_task_then_resume(reference, tmp_path):
+    """Killed after the last task's training files are written (``complete`` is true), while
+    its predictions execute: the run is not done, and resuming executes them."""
+    run = RunDir(tmp_path / "run")
+    proc = _cli(*TRAIN, "--out", str(run.path))
+
+    def executing_last() -> bool:
+        try:
+            doc = run.read_results() or {}
+        except ValueError:
+            return False
+        return doc.get("tasks_done") == 2
+
+    _kill_when(proc, executing_last)
+    doc = run.load_results()
+    assert doc["complete"] and doc["tasks_done"] == 2
+    assert "success" not in doc  # the smaller matrix of task 0 was dropped, not kept
+    status = run.status(2, sim=True)
+    assert status.state == "partial" and "executed" in status.reason
+    _finish(*TRAIN, "--out", str(run.path))
+    assert _results(run.path) == reference
+
+
+def test_a_second_trainer_of_the_same_run_is_refused(tmp_path):
+    run = RunDir(tmp_path / "run")
+    with run.lock("test holder"):
+        proc = _cli(*TRAIN, "--no-sim", "--out", str(run.path))
+        out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and f"pid {os.getpid()}" in lines[0] and "test holder" in lines[0]
+    assert not run.results_path.exists()  # it trained nothing
+    assert (run.path / LOCK_FILE).exists()
+
+
+def _processes_mentioning(text: str) -> list[int]:
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            continue
+        if text in cmd:
+            pids.append(int(entry.name))
+    return pids
+
+
+GRID = ["leaderboard", "--dataset", "helloworld", "--methods", "sg,hn", "--profile", "smoke",
+        "--tasks", "2", "--no-sim", "--workers", "2"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal: Linux")
+def test_kill_the_grid_parent_leaves_no_orphans_and_resumes(tmp_path):
+    reference = tmp_path / "reference"
+    _finish(*GRID, "--out", str(reference))
+    out = tmp_path / "grid"
+    proc = _cli(*GRID, "--out", str(out))
+    runs = out / "runs" / "helloworld"
+    _kill_when(proc, lambda: any(runs.glob("*/*/train.log")))  # children are training
+    # Only the grid's own process was killed (not its children's groups): the children
+    # must end by themselves.
+    deadline = time.monotonic() + 20
+    while _processes_mentioning(str(out)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _processes_mentioning(str(out)), "a killed grid left training processes"
+    _finish(*GRID, "--out", str(out))
+    ref = json.loads((reference / "leaderboard.json").read_text())
+    got = json.loads((out / "leaderboard.json").read_text())
+    assert _comparable(got["rows"]) == _comparable(ref["rows"])
+    for run_ref in sorted((reference / "runs").rglob("results.json")):
+        run_got = out / run_ref.relative_to(reference)
+        assert _results(run_got.parent) == _results(run_ref.parent), run_got
