@@ -5,9 +5,16 @@ Same loss form as SI with ``lambda`` in place of ``c``; the importance of a NODE
 squared L2 norm of the NODE's output, ``1/N sum_n |d ||f(x_n)||^2 / d theta_k|``. The data
 points are the task's (normalised) demonstration samples with their times and the task's
 embedding: all of them, or ``mas_points`` evenly spaced ones. Importances of successive tasks
-add up; ``theta*`` is the weights after the last task. (The original code estimated the
-importance from 2 x ``num_iter`` random window starts; the equation and this code use the
-task's data points.)
+add up; ``theta*`` is the weights after the last task.
+
+Where the released code (``tr_mas_node.py``, ``imitation_cl/model/node.py``) differs, this
+follows the paper's equation: the original estimated the importance from 2 x ``num_iter``
+random window starts evaluated at the last time ``t[-1]``, not from the task's data points;
+it computed importance and anchor only from task 1 on (inside ``if calc_reg``), so the first
+task was never protected; its current-task importance was never reset, so earlier tasks'
+importances were added again at every merge; and it cleared gradients once per iteration,
+taking the absolute value of gradients summed over samples rather than the mean of per-sample
+absolute gradients. (Checked in closed form by ``tests/test_si_mas_closed_form.py``.)
 """
 
 from __future__ import annotations
