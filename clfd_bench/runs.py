@@ -38,6 +38,7 @@ import io
 import json
 import os
 import shutil
+import zipfile
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -302,7 +303,7 @@ class RunDir:
                     digits = key[5:] if key.startswith("task_") else key
                     if digits.isdigit():
                         out[int(digits)] = np.asarray(npz[key], dtype=np.float64)
-        except (OSError, ValueError, EOFError) as exc:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise RunFileError(f"{path} is unreadable ({exc}); delete it and re-run the "
                                "`clfd-bench train` command of this run") from None
         missing = [j for j in range(after_task + 1) if j not in out]

@@ -11,8 +11,10 @@ One concept per module (import what you need; nothing heavy is imported here):
 - `trace`: `Trace`, `FrameHook`, `tracer`, `tool_site`, `tool_path`.
 - `execute`: `execute`, `execute_predictions`, `ExecResult`, failure kinds.
 - `scoring`: `sim_fields` (success matrix, its CL metrics), `failure_counts`.
-- `cache`: the rollout cache of a run directory.
+- `cache`: keys and summaries of the rollout cache (the file: `clfd_bench.runs.RunDir`).
 - `fingerprint`: `sim_fingerprint`, `sim_provenance`.
-- `saved_run`: reading a run's `results.json` and saved predictions.
+- `saved_run`: a run's learned tasks and saved predictions (read through `clfd_bench.runs`).
 - `evaluate`: `evaluate_run`, a saved run scored by execution (`clfd-bench evaluate`).
+- `limit_calibration`: the measurement behind `clfd_bench.sim.limits`' bounds
+  (`python eval/measure_limits.py`).
 """
