@@ -60,13 +60,15 @@ error), not as a joint velocity one. Elbow limits (libfranka's Cartesian-with-el
 not checked: the benchmark commands `hand` poses only.
 
 **How the bounds were measured** (tracking, collision, filters; numbers next to the
-constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v1`, `BottleShelving`,
-`PlateStacking`, `Pouring`: 9 demos each; `clfd/HelloWorld-<l>-v1`: 8 per letter;
-`clfd/LASA-<Shape>-v1`: 7 per shape), each as recorded and as the `slower` (2×) and `faster`
+constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v2`, `BottleShelving`,
+`PlateStacking`, `Pouring`: 9 demos each; `clfd/HelloWorld-<l>-v2`: 8 per letter;
+`clfd/LASA-<Shape>-v2`: 7 per shape), each as recorded and as the `slower` (2×) and `faster`
 (1.5×) replay families (`clfd_bench.execution.replay.replay_trajectory`), run with
 `clfd_bench.execution.rollout.rollout` (1 s of settling) in envs whose monitors had every bound
 infinite, recording per step the command, the hand's pose error and the robot-scene contact
-forces: 822 rollouts, all successful.
+forces: 822 rollouts, all successful. Re-run with `python eval/measure_limits.py` (the procedure:
+`clfd_bench.execution.limit_calibration`; ~20 min on 2 cores): it prints the measured worst
+values next to these constants and exits 1 when they no longer reproduce them.
 """
 
 from __future__ import annotations
@@ -107,15 +109,17 @@ MAX_REACH = 0.855
 # --------------------------------------------------------------------------- measured bounds
 #: Tracking bound: the `hand` body's error to the commanded pose after a control step, metres
 #: and radians: TRACKING_FACTOR × the largest error over the 822 replays (module docstring),
-#: with a floor. Measured: position 17.66 mm, rotation 0.0371 rad, both Pouring demo 7 1.5×
-#: faster (the servos reach their torque limits, 87 / 12 N·m, while the cup is swung); as
-#: recorded at most 9.6 mm and 0.026 rad (Pouring). Without Pouring: 6.0 mm (PlateStacking),
-#: under 0.7 mm in BoxOpening and BottleShelving and under 0.5 mm in the writing envs.
-#: -> 2 × max: 35.3 mm, 0.074 rad (floors 10 mm, 0.05 rad: the servos' lag of a smooth motion
+#: with a floor. Measured (2 ms physics steps): position 6.0 mm (PlateStacking demo 4 as
+#: recorded), rotation 0.0255 rad (Pouring demo 2 as recorded); per env at most 1.1 mm / 0.011
+#: rad (BoxOpening), 0.5 mm / 0.010 rad (BottleShelving), 6.0 mm / 0.011 rad (PlateStacking),
+#: 2.0 mm / 0.026 rad (Pouring), under 0.5 mm in the writing envs. (With v1's 4 ms physics
+#: steps the servos, at their torque limits while a held prop swings, lagged by up to 24 mm:
+#: an artefact of the step, see `clfd_bench.envs.robotask_derive.DESIGN`.)
+#: -> 2 × max: 12.0 mm, 0.051 rad (floors 10 mm, 0.05 rad: the servos' lag of a smooth motion
 #: is ~1 mm, so a centimetre means a hand held back or pushed away).
 TRACKING_FACTOR = 2.0
-TRACKING_MEASURED_POSITION = 0.01766
-TRACKING_MEASURED_ROTATION = 0.0371
+TRACKING_MEASURED_POSITION = 0.0060052
+TRACKING_MEASURED_ROTATION = 0.025513
 TRACKING_FLOOR_POSITION = 0.010
 TRACKING_FLOOR_ROTATION = 0.05
 TRACKING_POSITION = max(TRACKING_FLOOR_POSITION, TRACKING_FACTOR * TRACKING_MEASURED_POSITION)
@@ -126,9 +130,17 @@ TRACKING_ROTATION = max(TRACKING_FLOOR_ROTATION, TRACKING_FACTOR * TRACKING_MEAS
 #: all 822 the robot never touched the scene (largest robot-scene force 0 N; the props and the
 #: pen do touch it, and do not count).
 COLLISION_FORCE = 20.0
+#: The largest robot-scene pair force (N) over the 822 replays (the observation above).
+COLLISION_MEASURED_FORCE = 0.0
 #: Input filter of the reflex checks (module docstring): cascaded first-order stages, and the
 #: cutoff per channel (None: the raw command).
 FILTER_STAGES = 2
+#: How the rotation and joint cutoffs were chosen (module docstring): the highest value of each
+#: grid at which the worst filtered peak over the replays stays under 1 / FILTER_MARGIN of every
+#: limit of the channel (velocity, acceleration, jerk; each joint).
+ROTATION_FILTER_GRID = (8.0, 6.0, 5.0, 4.0, 3.0)
+JOINT_FILTER_GRID = (3.0, 2.5, 2.0, 1.5, 1.0)
+FILTER_MARGIN = 1.5
 TRANSLATION_FILTER_HZ: float | None = None
 ROTATION_FILTER_HZ: float | None = 5.0
 JOINT_FILTER_HZ: float | None = 2.5
