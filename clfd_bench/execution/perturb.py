@@ -33,8 +33,9 @@ import dataclasses
 import zlib
 from collections.abc import Callable
 
-import mujoco
 import numpy as np
+
+from clfd_bench.data.resample import min_jerk_profile, resample, slerp
 
 __all__ = ["FAMILIES", "Family", "PerturbContext", "family_names", "min_jerk", "perturb",
            "resample"]
@@ -72,35 +73,9 @@ def _is_pose(traj: np.ndarray) -> bool:
     return traj.shape[1] == 7
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, a: float) -> np.ndarray:
-    """Unit quaternion a of the way from q0 to q1 (w, x, y, z), by mujoco's quaternion maps."""
-    v = np.empty(3)
-    mujoco.mju_subQuat(v, q1, q0)  # rotation q0 -> q1 as a 3-vector in q0's frame
-    q = np.array(q0, dtype=float)
-    mujoco.mju_quatIntegrate(q, v, float(a))
-    return q / np.linalg.norm(q)
-
-
-def resample(traj: np.ndarray, n: int) -> np.ndarray:
-    """`traj` [T, D] resampled to `n` samples at evenly spaced times (positions linearly,
-    quaternions of 7-D poses by slerp). Returns [n, D]."""
-    traj = np.asarray(traj, dtype=float)
-    T = len(traj)
-    s = np.linspace(0.0, T - 1.0, int(n))
-    i0 = np.clip(np.floor(s).astype(int), 0, T - 1)
-    i1 = np.minimum(i0 + 1, T - 1)
-    a = s - i0
-    out = traj[i0] + a[:, None] * (traj[i1] - traj[i0])
-    if _is_pose(traj):
-        out[:, 3:] = [_slerp(traj[k0, 3:], traj[k1, 3:], w) for k0, k1, w in zip(i0, i1, a,
-                                                                                  strict=True)]
-    return out
-
-
 def min_jerk(n: int) -> np.ndarray:
     """[n] the minimum-jerk profile 10s³ − 15s⁴ + 6s⁵ from 0 to 1 over n samples."""
-    s = np.linspace(0.0, 1.0, int(n))
-    return s ** 3 * (10 - 15 * s + 6 * s * s)
+    return min_jerk_profile(np.linspace(0.0, 1.0, int(n)))
 
 
 def _line(start: np.ndarray, end: np.ndarray, n: int) -> np.ndarray:
@@ -108,7 +83,7 @@ def _line(start: np.ndarray, end: np.ndarray, n: int) -> np.ndarray:
     p = min_jerk(n)
     out = start + p[:, None] * (end - start)
     if len(start) == 7:
-        out[:, 3:] = [_slerp(start[3:], end[3:], w) for w in p]
+        out[:, 3:] = [slerp(start[3:], end[3:], w) for w in p]
     return out
 
 
