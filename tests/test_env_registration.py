@@ -35,6 +35,7 @@ def test_one_env_can_move_on_alone(monkeypatch):
 @pytest.mark.skipif(registration.FAMILY_VERSIONS["letters"] < 1, reason="no older version")
 def test_outdated_id_is_refused_naming_the_current_one():
     current = env_id_for("helloworld", "h")
-    old = current.rsplit("-v", 1)[0] + "-v0"
-    with pytest.raises(gym.error.Error, match=current.split("/")[1]):
-        gym.make(old)
+    stem, version = current.rsplit("-v", 1)
+    for old in range(int(version)):  # every older version, e.g. -v0 and -v1 for -v2
+        with pytest.raises(gym.error.Error, match=current.split("/")[1]):
+            gym.make(f"{stem}-v{old}")

@@ -45,7 +45,7 @@ def test_true_demo_succeeds_reversed_demo_fails(letter_h):
 
 
 def test_env_is_reused_between_calls():
-    assert get_env("clfd/HelloWorld-h-v1") is get_env("clfd/HelloWorld-h-v1")
+    assert get_env("clfd/HelloWorld-h-v2") is get_env("clfd/HelloWorld-h-v2")
 
 
 def test_bad_predictions_are_refused(letter_h):
@@ -62,7 +62,7 @@ def test_bad_predictions_are_refused(letter_h):
 
 
 def test_tool_path_of_a_letter_lies_on_the_board(letter_h):
-    base = get_env("clfd/HelloWorld-h-v1").unwrapped
+    base = get_env("clfd/HelloWorld-h-v2").unwrapped
     path = tool_path(base, letter_h[0])
     assert path.shape == (letter_h.shape[1], 3)
     np.testing.assert_allclose(path[:, :2], letter_h[0])  # HelloWorld data are board metres

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from clfd_bench.runs import LOCK_FILE, RunDir
+from clfd_bench.runs import RunDir
 
 TRAIN = ["train", "--method", "hn", "--dataset", "helloworld", "--profile", "smoke",
          "--tasks", "2", "--quiet"]
@@ -143,7 +143,7 @@ def test_a_second_trainer_of_the_same_run_is_refused(tmp_path):
     lines = err.strip().splitlines()
     assert len(lines) == 1 and f"pid {os.getpid()}" in lines[0] and "test holder" in lines[0]
     assert not run.results_path.exists()  # it trained nothing
-    assert (run.path / LOCK_FILE).exists()
+    assert not run.path.exists()  # and neither holder left anything behind
 
 
 def _processes_mentioning(text: str) -> list[int]:

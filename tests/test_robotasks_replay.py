@@ -15,8 +15,8 @@ from clfd_bench.envs.base import load_task
 from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 
-ENVS = {"openbox": "clfd/BoxOpening-v1", "bottle2shelf": "clfd/BottleShelving-v1",
-        "platestandingtolying": "clfd/PlateStacking-v1", "pouring": "clfd/Pouring-v1"}
+ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
+        "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2"}
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,7 @@ from clfd_bench.metrics.trajectory import coverage, hausdorff
 
 
 def test_reset_puts_the_pen_down_at_the_demo_start():
-    env = gym.make("clfd/HelloWorld-w-v1").unwrapped
+    env = gym.make("clfd/HelloWorld-w-v2").unwrapped
     obs, info = env.reset(seed=0, options={"demo": 4})
     assert info["demo"] == 4
     np.testing.assert_allclose(obs["pen_tip"][:2], env.demos[4, 0], atol=1e-3)
@@ -37,7 +37,7 @@ def test_reset_puts_the_pen_down_at_the_demo_start():
 def test_actions_are_clipped_to_the_board():
     # A jump to the board's edge breaks the Panda's motion limits (a reflex); switched off here,
     # where only the clipping is tested.
-    env = gym.make("clfd/LASA-Line-v1", limits=None).unwrapped
+    env = gym.make("clfd/LASA-Line-v2", limits=None).unwrapped
     env.reset(seed=0, options={"demo": 0})
     for _ in range(90):
         obs, *_ = env.step(np.array([5.0, 0.0]))  # far beyond the board edge x = 0.75
@@ -49,7 +49,7 @@ def test_actions_are_clipped_to_the_board():
 
 
 def test_lifted_pen_leaves_no_ink():
-    env = gym.make("clfd/HelloWorld-v1", text="l").unwrapped
+    env = gym.make("clfd/HelloWorld-v2", text="l").unwrapped
     env.reset(seed=0, options={"demo": 0})
     start = env.letter_to_surface(0, env.demo_letters(0)[0][0])
     for lift in np.concatenate([min_jerk(24), np.ones(30)]):
@@ -61,7 +61,7 @@ def test_lifted_pen_leaves_no_ink():
 
 
 def test_lasa_goal_is_centred_placement():
-    env = gym.make("clfd/LASA-Angle-v1").unwrapped
+    env = gym.make("clfd/LASA-Angle-v2").unwrapped
     demos = env.demos
     xy = env.to_surface(demos)
     centre = (xy.min(axis=(0, 1)) + xy.max(axis=(0, 1))) / 2
@@ -72,7 +72,7 @@ def test_lasa_goal_is_centred_placement():
 
 
 def test_text_layout_places_letters_along_a_line():
-    env = gym.make("clfd/HelloWorld-v1").unwrapped
+    env = gym.make("clfd/HelloWorld-v2").unwrapped
     assert env.letters == list("helloworld")
     actions = env.trajectory_to_actions(env.demo_letters(0))
     assert actions.shape == (env._trajectory_steps(0), 3)
@@ -190,9 +190,9 @@ def _project(cam, points: np.ndarray, aspect: float = 4 / 3) -> np.ndarray:
 def test_cameras_frame_the_shape():
     """The shape is in view and spans a good part of the 640 x 480 frame, reading the right way
     round (HelloWorld: the writing direction -x to the right; LASA: +x to the right)."""
-    for env_id, right in (("clfd/HelloWorld-l-v1", -1), ("clfd/HelloWorld-h-v1", -1),
-                          ("clfd/LASA-Worm-v1", 1), ("clfd/LASA-Line-v1", 1),
-                          ("clfd/HelloWorld-v1", -1)):
+    for env_id, right in (("clfd/HelloWorld-l-v2", -1), ("clfd/HelloWorld-h-v2", -1),
+                          ("clfd/LASA-Worm-v2", 1), ("clfd/LASA-Line-v2", 1),
+                          ("clfd/HelloWorld-v2", -1)):
         env = gym.make(env_id).unwrapped
         pts = env._framed_points()
         uv = _project(env.camera(), np.column_stack([pts, np.full(len(pts), 0.1)]))

@@ -18,7 +18,7 @@ from clfd_bench.envs.writing import ink_strokes
 from clfd_bench.execution.replay import replay
 from clfd_bench.execution.rollout import rollout
 
-LETTERS = ("clfd/HelloWorld-l-v1", "clfd/HelloWorld-h-v1")
+LETTERS = ("clfd/HelloWorld-l-v2", "clfd/HelloWorld-h-v2")
 
 
 @pytest.fixture(scope="module", params=LETTERS)
@@ -51,24 +51,24 @@ def test_wrong_shapes_fail_on_their_shape(letter_env, family):
 
 
 def test_slower_noisy_and_offset_letters_succeed():
-    env = gym.make("clfd/HelloWorld-l-v1")
+    env = gym.make("clfd/HelloWorld-l-v2")
     for family in ("slower", "noise", "start-offset"):
-        (rec,) = replay("clfd/HelloWorld-l-v1", [5], family, env=env)
+        (rec,) = replay("clfd/HelloWorld-l-v2", [5], family, env=env)
         assert rec.success, (family, rec.info)
     env.close()
 
 
 def test_lasa_demo_succeeds_and_its_mirror_fails():
-    env = gym.make("clfd/LASA-Sine-v1")
-    (ok,) = replay("clfd/LASA-Sine-v1", [0], "demo", env=env)
+    env = gym.make("clfd/LASA-Sine-v2")
+    (ok,) = replay("clfd/LASA-Sine-v2", [0], "demo", env=env)
     assert ok.success, ok.info
-    (bad,) = replay("clfd/LASA-Sine-v1", [0], "mirror", env=env)
+    (bad,) = replay("clfd/LASA-Sine-v2", [0], "mirror", env=env)
     assert not bad.success and "hausdorff" in bad.info["failed"], bad.info
     env.close()
 
 
 def test_text_env_lifts_the_pen_between_letters():
-    env = gym.make("clfd/HelloWorld-v1", text="he")
+    env = gym.make("clfd/HelloWorld-v2", text="he")
     base = env.unwrapped
     result = rollout(env, base.demo_trajectory(1), demo=1)
     info = result.info
@@ -84,14 +84,14 @@ def test_text_env_lifts_the_pen_between_letters():
     assert len(strokes) == 2
     a, b = strokes[0][1], strokes[1][0]  # the gap between the letters
     assert not down[a:b].any() and np.linalg.norm(xy[b] - xy[a - 1]) > 0.02
-    (rev,) = replay("clfd/HelloWorld-v1", [1], "reverse", env=env)
+    (rev,) = replay("clfd/HelloWorld-v2", [1], "reverse", env=env)
     assert not rev.success
     env.close()
 
 
 def test_replay_cli_json(capsys, tmp_path):
     out = tmp_path / "t.json"
-    args = argparse.Namespace(env=["clfd/HelloWorld-l-v1"], demos="1", perturb="stop-early",
+    args = argparse.Namespace(env=["clfd/HelloWorld-l-v2"], demos="1", perturb="stop-early",
                               settle=0.5, json=str(out), verbose=False)
     assert replay_cli._run(args) == 0
     doc = json.loads(out.read_text())
@@ -102,4 +102,4 @@ def test_replay_cli_json(capsys, tmp_path):
 
 def test_replay_rejects_bad_demo_index():
     with pytest.raises(ValueError, match="has demos 0..7"):
-        replay("clfd/HelloWorld-h-v1", [8])
+        replay("clfd/HelloWorld-h-v2", [8])

@@ -1,18 +1,18 @@
 """Gymnasium registration of every clfd-bench environment (namespace `clfd`).
 
-Ids (each env has its own version, `env_version(name)`; all are `-v1` today):
+Ids (each env has its own version, `env_version(name)`; all are `-v2` today):
 
 | id | task | entry point |
 |---|---|---|
-| `clfd/BoxOpening-v1` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
-| `clfd/BottleShelving-v1` | RoboTasks `bottle2shelf` | same |
-| `clfd/PlateStacking-v1` | RoboTasks `platestandingtolying` | same |
-| `clfd/Pouring-v1` | RoboTasks `pouring` | same |
-| `clfd/HelloWorld-<letter>-v1` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
-| `clfd/HelloWorld-v1` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
-| `clfd/LASA-<Shape>-v1` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
+| `clfd/BoxOpening-v2` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
+| `clfd/BottleShelving-v2` | RoboTasks `bottle2shelf` | same |
+| `clfd/PlateStacking-v2` | RoboTasks `platestandingtolying` | same |
+| `clfd/Pouring-v2` | RoboTasks `pouring` | same |
+| `clfd/HelloWorld-<letter>-v2` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
+| `clfd/HelloWorld-v2` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
+| `clfd/LASA-<Shape>-v2` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
 
-LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v1`, `clfd/LASA-heee-v1`): every
+LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v2`, `clfd/LASA-heee-v2`): every
 one of the paper's 26 names uses only letters, digits and `_`, which Gymnasium ids allow.
 `lasa_env_name` refuses names with other characters rather than guess a mapping.
 
@@ -48,7 +48,7 @@ WRITING_MODULE = "clfd_bench.envs.writing"
 #: Version of each family of envs; a behaviour change bumps the version of what it changes
 #: (and adds a line to the env class's Version History). Gymnasium then refuses the old id
 #: with a message naming the new one.
-FAMILY_VERSIONS: dict[str, int] = {"robotasks": 1, "letters": 1, "text": 1, "lasa": 1}
+FAMILY_VERSIONS: dict[str, int] = {"robotasks": 2, "letters": 2, "text": 2, "lasa": 2}
 #: Versions of single envs that moved on without their family, e.g. {"Pouring": 2}.
 ENV_VERSIONS: dict[str, int] = {}
 _VALID_NAME = re.compile(r"^[A-Za-z0-9_]+$")

@@ -17,8 +17,8 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
 #: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
 DEFAULT_ENVS = (
-    "clfd/HelloWorld-h-v1", "clfd/LASA-Angle-v1", "clfd/BoxOpening-v1",
-    "clfd/BottleShelving-v1", "clfd/PlateStacking-v1", "clfd/Pouring-v1",
+    "clfd/HelloWorld-h-v2", "clfd/LASA-Angle-v2", "clfd/BoxOpening-v2",
+    "clfd/BottleShelving-v2", "clfd/PlateStacking-v2", "clfd/Pouring-v2",
 )
 #: Speed targets (x real time) from the issue.
 TARGET_X = 50.0

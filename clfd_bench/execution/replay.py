@@ -75,12 +75,13 @@ def _next_task_name(dataset: str, task_name: str) -> str:
 
 
 def _units_per_m(env: PandaEnv) -> float:
-    """Data units per metre on the robot: poses 1; a pen shape 1 / sim_scale; the text env
-    1 / its letter scale."""
+    """Data units per metre in which a family's lengths apply: poses 1; a LASA shape
+    1 / sim_scale (its lengths are metres on the board); HelloWorld letters 1, and so the text
+    env too: it is judged letter by letter in HelloWorld letter units with each letter's
+    tolerances, so its families perturb each letter in those units (a 1 cm start offset of a
+    letter is 3 mm on the board at the text's 0.3 scale), exactly as for the letter's own env."""
     if hasattr(env, "sim_scale"):
         return 1.0 / float(env.sim_scale)
-    if hasattr(env, "letters"):
-        return 1.0 / float(env.scale)
     return 1.0
 
 
