@@ -4,7 +4,7 @@ HelloWorld (7 letters), all seven CL methods, the ``fast`` profile, seed 0, task
 every prediction also executed on the simulated Panda; then a video of the robot writing
 "hello world" with the letters HN learned. Writes into ``results/`` (or ``--out``):
 ``leaderboard.md/.csv/.json``, the PNG figures, ``runs/`` and ``videos/``. Running it again
-skips what is finished (a killed job resumes). About 15 minutes on 2 cores.
+skips what is finished (a killed job resumes). About 12–20 minutes on 2 cores.
 """
 
 from __future__ import annotations
