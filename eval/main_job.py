@@ -17,6 +17,7 @@ from pathlib import Path
 
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.leaderboard.runner import run_leaderboard
+from clfd_bench.runs import RunDir
 
 METHODS = ["sg", "ft", "rep", "si", "mas", "hn", "chn"]
 
@@ -37,7 +38,7 @@ def main() -> int:
     print((out / "leaderboard.md").read_text())
     hn = RunSpec("helloworld", "hn", "fast", 0, 0, "t", None, True)
     video = None
-    if (hn.run_dir(out) / "results.json").is_file():
+    if RunDir(hn.run_dir(out)).results_path.is_file():
         from clfd_bench.viz.video import VideoStyle, render_text_video
 
         print("[main job] rendering 'hello world' written with HN's learned letters", flush=True)

@@ -160,7 +160,7 @@ def _run(args: argparse.Namespace) -> int:
     if cl and not args.quiet:
         shown = ", ".join(f"{k} {'n/a' if v is None else format(v, '.3f')}"
                           for k, v in cl.items())
-        print(f"done: {args.out}/results.json ({results['cl_metrics_primary']}: {shown})")
+        print(f"done: {run.results_path} ({results['cl_metrics_primary']}: {shown})")
         sim_cl = results.get("sim_cl_metrics")
         if sim_cl:
             shown = ", ".join(f"{k} {'n/a' if v is None else format(v, '.3f')}"
