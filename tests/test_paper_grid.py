@@ -77,12 +77,16 @@ def test_cost_counts_iterations_from_the_profile():
 
 def _write_run(root, spec: RunSpec, cl_by_metric, params_by_part, times_by_part, sim=None):
     """A finished run's results.json with known CL metrics (nothing trained)."""
+    from clfd_bench.execution.fingerprint import sim_fingerprint
+    from clfd_bench.runs import RunDir
+
     run_dir = spec.run_dir(root)
     run_dir.mkdir(parents=True)
     parts = list(params_by_part)
     results = {
         "complete": True,
         "tasks": ["a", "b"],
+        "tasks_done": 2,
         "train_time_s": [sum(t) for t in zip(*times_by_part.values(), strict=True)],
         "train_time_s_by_part": times_by_part,
         "num_params": [sum(p) for p in zip(*params_by_part.values(), strict=True)],
@@ -92,9 +96,12 @@ def _write_run(root, spec: RunSpec, cl_by_metric, params_by_part, times_by_part,
         "cl_metrics_by_metric": cl_by_metric,
         "success": [[[True]], [[True], [True]]] if sim is not None else None,
         "sim_cl_metrics": sim,
+        # executed by this simulator (a run is done only then: clfd_bench.runs.RunDir.status)
+        "sim": {"evaluated_tasks": 2, "fingerprint": sim_fingerprint()} if sim is not None
+        else None,
     }
     assert parts
-    (run_dir / "results.json").write_text(json.dumps(results))
+    RunDir(run_dir).write_training_results(results)
 
 
 def _cl(acc, rem, ms=1.0, te=1.0, sss=1.0):
