@@ -189,7 +189,7 @@ class RunDir:
 
     def predictions_path(self, after_task: int) -> Path:
         """``predictions/after_task_{i}.npz``."""
-        return self.path / PREDICTIONS_DIR / f"after_task_{after_task}.npz"
+        return self.path / self.predictions_name(after_task)
 
     @staticmethod
     def predictions_name(after_task: int) -> str:

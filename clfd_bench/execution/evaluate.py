@@ -114,16 +114,16 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
         raise ValueError(f"workers must be >= 1, got {workers}")
     run = load_run(run_dir)
     run_dir, dataset, names, m = run.path, run.dataset, run.task_names, run.num_learned
+    store = RunDir(run_dir)
     if m == 0:
-        raise ValueError(f"{RunDir(run_dir).results_path} has no finished task to evaluate; train "
-                         "at least one task first")
+        raise ValueError(f"{store.results_path} has no finished task to evaluate; train at "
+                         "least one task first")
     env_ids = _env_ids(dataset, names[:m])
     if not any(env_ids):
         raise ValueError(f"no task of {dataset} {names[:m]} has a simulated env; nothing to "
                          "execute")
 
     fingerprint = sim_fingerprint()
-    store = RunDir(run_dir)
     cache = {} if force else store.load_cache(fingerprint)
     # Every evaluation point -> its key; the distinct keys still to execute -> their job.
     points: list[tuple[int, int, int, str, np.ndarray]] = []

@@ -53,9 +53,9 @@ class SavedRun:
 
 def load_run(run_dir: str | Path) -> SavedRun:
     """Reads a run directory's ``results.json`` into a :class:`SavedRun`."""
-    run_dir = Path(run_dir)
-    where = RunDir(run_dir).results_path
-    results = RunDir(run_dir).load_results()
+    store = RunDir(run_dir)
+    run_dir, where = store.path, store.results_path
+    results = store.load_results()
     tasks = results.get("tasks")
     if not tasks:
         raise ValueError(f"{where} has no 'tasks'; was it written by `clfd-bench train`?")
