@@ -43,13 +43,14 @@ def _run(args: argparse.Namespace) -> int:
     from clfd_bench.methods import get_method_class
 
     if args.dataset not in DATASETS:
-        print(f"unknown dataset {args.dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+        print(f"clfd-bench leaderboard: error: unknown dataset {args.dataset!r}; valid: "
+              f"{', '.join(DATASETS)}", file=sys.stderr)
         return 2
     try:
         for method in args.methods:
             get_method_class(method)
     except KeyError as exc:
-        print(exc.args[0], file=sys.stderr)
+        print(f"clfd-bench leaderboard: error: {exc.args[0]}", file=sys.stderr)
         return 2
     result = run_leaderboard(
         dataset=args.dataset,
