@@ -64,3 +64,42 @@ def test_quat_angle():
     assert quat_angle(DOWN, -DOWN) == pytest.approx(0.0, abs=1e-7)
     q90 = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
     assert quat_angle(np.array([1.0, 0, 0, 0]), q90) == pytest.approx(np.pi / 2)
+
+
+@pytest.mark.parametrize("tool", [None, "pen"])
+def test_tracking_qp_is_minks_problem_to_the_last_bit(tool):
+    """The tracker's preassembled QP equals `mink.build_ik`'s for its tasks and limits, at
+    random configurations (inside and outside the joint range) and random targets."""
+    import mink
+
+    t = PoseTracker(robot_model(tool), posture_gain=0.1)
+    assert t._qp is not None
+    rng = np.random.default_rng(0)
+    lo, hi = t.index.arm_range[:, 0], t.index.arm_range[:, 1]
+    for k in range(25):
+        q = rng.uniform(lo - 0.05, hi + 0.05)
+        t.reset(np.clip(q, lo, hi), posture=rng.uniform(lo, hi))
+        t.configuration.data.qpos[t.index.arm_qpos] = q  # also beyond a limit
+        t.configuration.update()
+        t.set_target(rng.uniform([0.2, -0.5, 0.0], [0.7, 0.5, 0.8]), rng.normal(size=4))
+        dt = (1 / 60, 0.05)[k % 2]
+        H, c, G, h = t._qp.problem(dt)
+        ref = mink.build_ik(t.configuration, t.tasks, dt, 1e-12, t.limits)
+        for ours, theirs in ((H, ref.P), (c, ref.q), (G, ref.G), (h, ref.h)):
+            assert ours.shape == theirs.shape
+            assert np.array_equal(ours, theirs)
+
+
+def test_tracking_qp_solution_matches_mink_solve_ik():
+    """Tracking a demo with the preassembled QP gives mink.solve_ik's joint trajectory."""
+    ds = load_dataset("robotasks")
+    demo = ds.tasks[0].demos[0][::10]
+    fast = PoseTracker(robot_model(None))
+    slow = PoseTracker(robot_model(None), solver="daqp")
+    slow._qp = None  # the generic path: mink.solve_ik through qpsolvers
+    for tr in (fast, slow):
+        tr.solve(demo[0, :3], demo[0, 3:])
+    for pose in demo:
+        qa, _, _ = fast.track(pose[:3], pose[3:])
+        qb, _, _ = slow.track(pose[:3], pose[3:])
+        np.testing.assert_allclose(qa, qb, atol=1e-9)

@@ -141,7 +141,8 @@ def add_table(spec: mujoco.MjSpec, table_z: float,
 
 def apply_solver_options(spec: mujoco.MjSpec, opt: dict[str, Any]) -> None:
     """Applies a spec's `[solver]` table: `solver` ("newton", "cg", "pgs"), `iterations`,
-    `ls_iterations`, `tolerance`, `cone` ("pyramidal", "elliptic"). (MuJoCo's island sleeping
+    `ls_iterations`, `tolerance`, `cone` ("pyramidal", "elliptic"), `jacobian` ("dense",
+    "sparse", "auto": MuJoCo's default, sparse from 60 dofs on). (MuJoCo's island sleeping
     would make a resting rack cheaper, but which bodies sleep is not part of the
     physics state `mj_getState` saves, so a pickled env would not continue exactly.)"""
     if not opt:
@@ -156,6 +157,8 @@ def apply_solver_options(spec: mujoco.MjSpec, opt: dict[str, Any]) -> None:
         spec.option.tolerance = float(opt["tolerance"])
     if opt.get("cone"):
         spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{opt['cone'].upper()}")
+    if opt.get("jacobian"):
+        spec.option.jacobian = getattr(mujoco.mjtJacobian, f"mjJAC_{opt['jacobian'].upper()}")
 
 
 class Scene:

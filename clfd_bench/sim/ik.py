@@ -9,6 +9,8 @@ error is reported; nothing raises for them.
 
 from __future__ import annotations
 
+import math
+
 import daqp
 import mink
 import mujoco
@@ -26,8 +28,8 @@ def _check_finite(name: str, x: np.ndarray) -> None:
 
 def quat_angle(q1: np.ndarray, q2: np.ndarray) -> float:
     """Rotation angle (rad, in [0, pi]) between two unit quaternions [4] (w, x, y, z)."""
-    d = abs(float(np.dot(q1, q2)))
-    return 2.0 * float(np.arccos(min(d, 1.0)))
+    d = abs(float(q1 @ q2))
+    return 2.0 * math.acos(min(d, 1.0))
 
 
 class PoseTracker:
@@ -82,10 +84,9 @@ class PoseTracker:
         self._frame_id = mujoco.mj_name2id(model, self._frame_kind, frame)
         if self._frame_id < 0:
             raise ValueError(f"model has no {frame_type} named {frame!r}")
-        self._sense: np.ndarray | None = None
-        self._blower: np.ndarray | None = None
         self._target_pos: np.ndarray | None = None
         self._target_quat: np.ndarray | None = None
+        self._wxyz_xyz = np.empty(7)
         self.configuration = mink.Configuration(model)
         self.frame_task = mink.FrameTask(frame, frame_type, position_cost=position_cost,
                                          orientation_cost=orientation_cost,
@@ -95,15 +96,13 @@ class PoseTracker:
         self.posture_task = mink.PostureTask(model, cost=posture_cost, gain=posture_gain)
         self.tasks = [self.frame_task, self.posture_task]
         self.limits: list = [mink.ConfigurationLimit(model)]
-        self._varying_limits = list(self.limits)
         self._velocity_limit = None
         if velocity_limits:
             vmax = dict(zip(ARM_JOINTS, JOINT_VELOCITY_LIMITS.tolist(), strict=True))
             self._velocity_limit = mink.VelocityLimit(model, vmax)
             self.limits.append(self._velocity_limit)
-        self._vel_dt: float | None = None
-        self._vel_G: np.ndarray | None = None
-        self._vel_h: np.ndarray | None = None
+        self._qp: _TrackingQP | None = (_TrackingQP(self) if solver == "daqp"
+                                        and _TrackingQP.supports(self) else None)
         q0 = model.qpos0.copy()
         q0[self.index.arm_qpos] = HOME_QPOS
         self._q_full0 = q0
@@ -142,15 +141,19 @@ class PoseTracker:
         """Sets the frame target: position [3] m, quaternion [4] w,x,y,z (normalised here)."""
         pos = np.asarray(target_pos, dtype=float).reshape(3)
         quat = np.asarray(target_quat, dtype=float).reshape(4)
-        if not (np.isfinite(pos).all() and np.isfinite(quat).all()):
+        n2 = float(quat @ quat)
+        if not math.isfinite(n2 + float(pos @ pos)):  # NaN/inf (or a huge value: checked here)
             _check_finite("target position", pos)
             _check_finite("target quaternion", quat)
-        n = np.linalg.norm(quat)
+        n = math.sqrt(n2)
         if n < 1e-9:
             raise ValueError("target quaternion has zero norm; pass a unit quaternion (w, x, y, z)")
         self._target_pos = pos
         self._target_quat = quat / n
-        self.frame_task.set_target(mink.SE3(np.concatenate([self._target_quat, pos])))
+        wxyz_xyz = self._wxyz_xyz
+        wxyz_xyz[:4] = self._target_quat
+        wxyz_xyz[4:] = pos
+        self.frame_task.set_target(mink.SE3(wxyz_xyz.copy()))
 
     def step(self, iterations: int | None = None) -> None:
         """Runs QP iterations towards the current target (default `self.iterations`)."""
@@ -162,36 +165,13 @@ class PoseTracker:
             self.configuration.integrate_inplace(vel, self.dt)
 
     def _solve_velocity(self) -> np.ndarray | None:
-        if self.solver != "daqp":
-            try:
-                return mink.solve_ik(self.configuration, self.tasks, self.dt, self.solver,
-                                     limits=self.limits)
-            except mink.NoSolutionFound:
-                return None
-        # Same QP as mink.solve_ik (mink.build_ik), handed to DAQP directly: the qpsolvers
-        # wrapper costs more than the solve for a 7-DoF arm. The velocity limit's inequality is
-        # constant for a fixed dt, so it is computed once and appended.
-        conf = self.configuration
-        problem = mink.build_ik(conf, self.tasks, self.dt, 1e-12, self._varying_limits)
-        if self._vel_dt != self.dt:
-            self._vel_G, self._vel_h = None, None
-            if self._velocity_limit is not None:
-                ineq = self._velocity_limit.compute_qp_inequalities(conf, self.dt)
-                self._vel_G, self._vel_h = ineq.G, ineq.h
-            self._vel_dt = self.dt
-        G, h = problem.G, problem.h
-        if self._vel_G is not None:
-            G = self._vel_G if G is None else np.vstack([G, self._vel_G])
-            h = self._vel_h if h is None else np.concatenate([h, self._vel_h])
-        if G is None:
-            G, h = np.zeros((0, problem.P.shape[0])), np.zeros(0)
-        if self._sense is None or len(self._sense) != len(h):
-            self._sense = np.zeros(len(h), dtype=np.intc)
-            self._blower = np.full(len(h), -1e30)
-        x, _, exitflag, _ = daqp.solve(problem.P, problem.q, G, h, self._blower, self._sense)
-        if exitflag <= 0:
+        if self._qp is not None:
+            return self._qp.solve(self.dt)
+        try:
+            return mink.solve_ik(self.configuration, self.tasks, self.dt, self.solver,
+                                 limits=self.limits)
+        except mink.NoSolutionFound:
             return None
-        return x / self.dt
 
     def error(self) -> tuple[float, float]:
         """(position error m, rotation error rad) of the current solution to the target."""
@@ -207,7 +187,8 @@ class PoseTracker:
             pos = xpos[self._frame_id]
             quat = np.empty(4)
             mujoco.mju_mat2Quat(quat, xmat[self._frame_id])
-        return float(np.linalg.norm(pos - self._target_pos)), quat_angle(quat, self._target_quat)
+        diff = pos - self._target_pos
+        return math.sqrt(float(diff @ diff)), quat_angle(quat, self._target_quat)
 
     def track(self, target_pos: np.ndarray, target_quat: np.ndarray,
               iterations: int | None = None) -> tuple[np.ndarray, float, float]:
@@ -244,3 +225,106 @@ class PoseTracker:
             self.dt = old_dt
         pos_err, rot_err = self.error()
         return self.q, pos_err, rot_err
+
+
+class _TrackingQP:
+    """The QP of `mink.build_ik` for the tracker's two tasks and two limits, assembled into
+    preallocated arrays and handed to DAQP directly.
+
+    mink builds the same problem generically every iteration (task lists, `vstack`s, a
+    `qpsolvers.Problem`), which costs more than the solve for a 7-DoF arm. Here the constant
+    parts are computed once: the posture task's Jacobian is the identity, so its rows of the
+    stacked weighted Jacobian are `diag(cost)`; the configuration limit's and the velocity
+    limit's inequality matrices do not depend on the configuration, and the velocity limit's
+    right-hand side only on `dt`. Per iteration only mink's frame-task residual (error and
+    Jacobian, mink's own code), the posture error and the configuration limit's right-hand
+    side are computed, with the same operations in the same order as mink, so the problem is
+    the same to the last bit (`tests/test_ik.py` compares it with `mink.build_ik`).
+
+    Used when the model has no free or ball joints (the robot-only models); otherwise
+    `PoseTracker` calls `mink.solve_ik`.
+    """
+
+    def __init__(self, tracker: PoseTracker):
+        model = tracker.model
+        self.tracker = tracker
+        self.model = model
+        nv = model.nv
+        conf_limit = tracker.limits[0]
+        self.conf_limit = conf_limit
+        idx = np.asarray(conf_limit.indices, dtype=int)
+        self.idx = idx
+        proj = conf_limit.projection_matrix
+        vel = tracker._velocity_limit
+        vel_proj = None if vel is None else vel.projection_matrix
+        blocks = [proj, -proj] + ([] if vel_proj is None else [vel_proj, -vel_proj])
+        self.G = np.vstack(blocks)
+        self.h = np.empty(len(self.G))
+        self.nb = len(idx)
+        self.vel_limit = None if vel_proj is None else np.asarray(vel.limit, dtype=float)
+        self.h_dt: float | None = None
+        self.sense = np.zeros(len(self.h), dtype=np.intc)
+        self.lower_bound = np.full(len(self.h), -1e30)
+        posture = tracker.posture_task
+        self.W = np.zeros((6 + nv, nv))
+        self.W[6:] = np.diag(posture.cost)
+        self.e = np.empty(6 + nv)
+        self.posture_err = np.empty(nv)
+        self.dq_max = np.empty(nv)
+        self.dq_min = np.empty(nv)
+
+    @staticmethod
+    def supports(tracker: PoseTracker) -> bool:
+        """True when the model has only hinge and slide joints (no free or ball joint) and the
+        limits are the tracker's own (configuration limit, optional velocity limit)."""
+        m = tracker.model
+        simple = all(int(t) in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+                     for t in m.jnt_type)
+        conf_limit = tracker.limits[0]
+        return (simple and isinstance(conf_limit, mink.ConfigurationLimit)
+                and conf_limit.projection_matrix is not None)
+
+    def problem(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(H [nv, nv], c [nv], G [m, nv], h [m]) of the QP in the displacement dq
+        (minimise 1/2 dq' H dq + c' dq subject to G dq <= h), as `mink.build_ik` builds it
+        with damping 1e-12. G and h are this object's buffers (valid until the next call)."""
+        t = self.tracker
+        conf = t.configuration
+        model, q = self.model, conf.data.qpos
+        posture = t.posture_task
+        wf, ef, mu_frame = t.frame_task.compute_qp_residual(conf)
+        mujoco.mj_differentiatePos(model, self.posture_err, 1.0, posture.target_q, q)
+        ep = posture.cost * (-posture.gain * self.posture_err)
+        mu_posture = posture.lm_damping * float(ep @ ep)
+        W, e = self.W, self.e
+        W[:6] = wf
+        e[:6] = ef
+        e[6:] = ep
+        H = W.T @ W
+        c = -(e @ W)
+        mu_total = 0.0
+        mu_total += mu_frame
+        mu_total += mu_posture
+        H.flat[:: model.nv + 1] += 1e-12 + mu_total
+        # Configuration limit (mink's formula), then the velocity limit (constant for a dt).
+        lim = self.conf_limit
+        mujoco.mj_differentiatePos(model, self.dq_max, 1.0, q, lim.upper)
+        mujoco.mj_differentiatePos(model, self.dq_min, 1.0, lim.lower, q)
+        nb, h = self.nb, self.h
+        h[:nb] = lim.gain * self.dq_max[self.idx]
+        h[nb:2 * nb] = lim.gain * self.dq_min[self.idx]
+        if self.vel_limit is not None and self.h_dt != dt:
+            n = len(self.vel_limit)
+            h[2 * nb:2 * nb + n] = dt * self.vel_limit
+            h[2 * nb + n:] = dt * self.vel_limit
+            self.h_dt = dt
+        return H, c, self.G, h
+
+    def solve(self, dt: float) -> np.ndarray | None:
+        """The joint velocity [nv] of one QP iteration with step `dt`, or None when DAQP
+        reports the problem infeasible."""
+        H, c, G, h = self.problem(dt)
+        x, _, exitflag, _ = daqp.solve(H, c, G, h, self.lower_bound, self.sense)
+        if exitflag <= 0:
+            return None
+        return x / dt

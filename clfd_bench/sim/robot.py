@@ -222,7 +222,7 @@ class RobotIndex:
 
 def gripper_ctrl(opening: float) -> float:
     """Gripper actuator control for a finger opening in [0, FINGER_OPEN] metres per finger."""
-    return float(np.clip(opening / FINGER_OPEN, 0.0, 1.0) * GRIPPER_CTRL_MAX)
+    return min(max(float(opening) / FINGER_OPEN, 0.0), 1.0) * GRIPPER_CTRL_MAX
 
 
 def hand_pose(model: mujoco.MjModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
