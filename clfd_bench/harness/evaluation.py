@@ -19,6 +19,7 @@ from clfd_bench.metrics.thresholds import threshold
 
 __all__ = [
     "POSITION_METRICS",
+    "metric_part",
     "metric_units",
     "metrics_for",
     "summarize",
@@ -85,6 +86,13 @@ def task_errors(task: Task, pred: np.ndarray) -> dict[str, list[float]]:
     }
 
 
+def metric_part(metric: str, by_part: dict[str, Any]) -> str:
+    """The model (``position`` or ``orientation``) whose size and training time a metric's CL
+    criteria (MS, TE, FS) use: the orientation model for ``quaternion`` when the run has one,
+    else the position model (the paper's RoboTasks tables are per model)."""
+    return "orientation" if metric == "quaternion" and "orientation" in by_part else "position"
+
+
 def summarize(
     errors: Mapping[str, Sequence[Sequence[Sequence[float] | None]]],
     thresholds: Mapping[str, float],
@@ -115,8 +123,6 @@ def summarize(
         ]
         r = accuracy_matrix(rows, thr)
         accuracy[metric] = [[None if np.isnan(v) else float(v) for v in row] for row in r]
-        part = "position"
-        if metric == "quaternion" and "orientation" in num_params:
-            part = "orientation"
+        part = metric_part(metric, num_params)
         cl[metric] = cl_metrics(r, num_params[part], stored, total_samples, train_times[part])
     return accuracy, cl

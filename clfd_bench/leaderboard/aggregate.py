@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from clfd_bench.harness.evaluation import metric_part
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
 
@@ -72,7 +73,13 @@ def error_metric_for(results: dict[str, Any]) -> str:
 
 
 def _final_size(results: dict[str, Any]) -> float:
-    sizes = results.get("num_params") or []
+    """The final size of the model the run's CL criteria describe: for pose data the part of
+    its primary metric (RoboTasks: the position model, as MS and TE and the paper's position
+    table), else the whole model."""
+    by_part = results.get("num_params_by_part") or {}
+    primary = results.get("cl_metrics_primary")
+    sizes = by_part.get(metric_part(primary, by_part)) if by_part and primary else None
+    sizes = sizes or results.get("num_params") or []
     return float(sizes[-1]) if sizes else float("nan")
 
 

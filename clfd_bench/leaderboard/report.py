@@ -1,10 +1,43 @@
-"""Leaderboard tables: Markdown, CSV and JSON, written atomically."""
+"""Leaderboard tables: Markdown, CSV and JSON, written atomically.
+
+The paper's ranking beside ours
+-------------------------------
+When the grid is one the paper has a CL table for (:func:`paper_ranking`), the Markdown
+table gets two more columns, ``paper #`` (the method's rank in that table by CL_score) and
+``paper CL_score``, and a line under the table names the table (its LaTeX label), says
+whether our ranking by median CL_score equals the paper's and, if not, which pairs are
+swapped and by how much. A grid matches a paper table when it has the same dataset, the same
+NODE variant and exactly the table's methods; the profile, seeds, orders, simulation and a
+``--tasks`` limit do not matter (the last is said in the line). Otherwise the table is
+unchanged and the line says why no paper table matches.
+
+* Ranks: the paper prints CL_scores rounded to two decimals; methods with the same printed
+  CL_score **share a rank** (competition ranking: 1, 2, 2, 4), as nothing in the paper orders
+  them (only LASA NODE^I has such ties: FT/SI 0.69, REP/CHN 0.82).
+* Swaps: a pair is swapped when ours and the paper order it strictly the other way round
+  (a pair tied in either is not). A swap whose CL_scores differ by at most :data:`TIE` in
+  ours or in the paper's counts as a tie, and the line says so; the ranking "equals the
+  paper's up to ties" when every swap is one. Methods without a CL_score of ours (no finished
+  run) are left out of the comparison, and named.
+* RoboTasks: the paper has a position table (``tab:rt_pos_cl``, DTW of positions) and an
+  orientation table (``tab:rt_ori_cl``, quaternion error). The leaderboard has one CL_score,
+  computed (:func:`clfd_bench.leaderboard.aggregate.aggregate`) from a run's
+  ``cl_metrics``, which is its primary metric, ``cl_metrics_primary`` = ``"dtw"``: position
+  DTW, with MS and TE from the position model. So a RoboTasks leaderboard is compared with
+  the position table only; the orientation one has no counterpart here (the paper-table
+  study, :mod:`clfd_bench.studies.paper_tables`, builds both). The paper's RoboTasks tables
+  are NODE^T only and ``robotasks9`` has none.
+
+The ``.csv`` and ``.json`` rows carry ``paper_rank`` and ``paper_cl_score`` (empty / null
+when no paper table matches); the ``.json`` also has the comparison under ``"paper"``.
+"""
 
 from __future__ import annotations
 
 import csv
 import io
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +45,7 @@ from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
 
-__all__ = ["COLUMNS", "rank", "write_tables"]
+__all__ = ["COLUMNS", "TIE", "PaperRanking", "paper_ranking", "rank", "write_tables"]
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("CL_score", "CL_score"),
@@ -26,6 +59,157 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("final_params", "params"),
 )
 """(key in MethodRow.values, column header), in table order."""
+
+
+TIE = 0.02
+"""A swap of two methods whose CL_scores differ by at most this (ours or the paper's) is a tie."""
+
+_DATASET_NAMES = {"lasa": "LASA", "helloworld": "HelloWorld", "robotasks": "RoboTasks"}
+
+
+@dataclass
+class PaperRanking:
+    """The paper's CL table matching a leaderboard's grid, and how our ranking compares.
+
+    Attributes:
+        label: the paper table's LaTeX label, or None when no table matches the grid.
+        note: the one line printed under the Markdown table.
+        table: ``(dataset, variant)`` of :func:`clfd_bench.studies.paper_numbers.cl_table`.
+        reason: why no table matches (None when one does).
+        ranks, scores: method (lower case, as in the grid) -> the paper's rank / CL_score.
+        matches: our ranking equals the paper's (None: no table, or nothing to compare).
+        matches_up_to_ties: the same, counting swaps within :data:`TIE` as ties.
+        swaps: ``{"paper_ahead", "ours_ahead", "paper_diff", "ours_diff", "tie"}`` per
+            swapped pair, in the paper's order.
+        not_compared: methods without a CL_score of ours.
+    """
+
+    label: str | None
+    note: str
+    table: tuple[str, str] | None = None
+    reason: str | None = None
+    ranks: dict[str, int] = field(default_factory=dict)
+    scores: dict[str, float] = field(default_factory=dict)
+    matches: bool | None = None
+    matches_up_to_ties: bool | None = None
+    swaps: list[dict[str, Any]] = field(default_factory=list)
+    not_compared: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "table": self.label,
+            "dataset": self.table[0] if self.table else None,
+            "variant": self.table[1] if self.table else None,
+            "reason": self.reason,
+            "ranking_matches": self.matches,
+            "ranking_matches_up_to_ties": self.matches_up_to_ties,
+            "tie_threshold": TIE,
+            "swaps": self.swaps,
+            "not_compared": self.not_compared,
+            "note": self.note,
+        }
+
+
+def _paper_table(meta: dict[str, Any]) -> tuple[tuple[str, str] | None, str]:
+    """``((dataset, variant), label)`` of the paper table matching the grid, or
+    ``(None, reason)``."""
+    from clfd_bench.studies.paper_numbers import cl_table, cl_table_label, cl_tables
+
+    dataset, node = meta["dataset"], meta.get("node", "t")
+    if dataset not in _DATASET_NAMES:
+        return None, f"the paper has no CL table for {dataset}"
+    if dataset == "robotasks":
+        if node != "t":
+            return None, (f"the paper's RoboTasks tables are NODE^T only (this grid: "
+                          f"NODE^{node.upper()})")
+        variant = "position"  # CL_score here is from the runs' primary metric, position DTW
+    else:
+        variant = node
+    if (dataset, variant) not in cl_tables():
+        return None, f"the paper has no CL table for {dataset} NODE^{node.upper()}"
+    label = cl_table_label(dataset, variant)
+    paper = list(cl_table(dataset, variant))
+    ours = [m.upper() for m in meta["methods"]]
+    missing = [m for m in paper if m not in ours]
+    extra = [m for m in ours if m not in paper]
+    if missing or extra:
+        parts = ([f"missing {', '.join(missing)}"] if missing else []) + (
+            [f"not in it {', '.join(extra)}"] if extra else [])
+        return None, f"methods differ from {label}: {'; '.join(parts)}"
+    return (dataset, variant), label
+
+
+def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
+    """Compare the leaderboard's rows (any order) with the paper's matching CL table.
+
+    ``meta`` needs ``dataset``, ``methods`` and ``node`` (default ``"t"``); ``tasks`` is
+    mentioned when set. See the module docstring for the rules.
+    """
+    from clfd_bench.studies.paper_numbers import cl_table
+
+    table, label = _paper_table(meta)
+    if table is None:
+        return PaperRanking(None, f"Paper: no paper CL table matches this grid ({label}).",
+                            reason=label)
+    dataset, variant = table
+    paper = {m.lower(): row["CL_score"] for m, row in cl_table(dataset, variant).items()}
+    ranks = {m: 1 + sum(other > score for other in paper.values()) for m, score in paper.items()}
+    order = sorted(paper, key=lambda m: (ranks[m], list(paper).index(m)))
+    ours = {r.method.lower(): r.median("CL_score") for r in rows}
+    not_compared = [m for m in order if math.isnan(ours.get(m, math.nan))]
+    swaps = []
+    for i, ahead in enumerate(order):
+        for behind in order[i + 1:]:
+            if ahead in not_compared or behind in not_compared:
+                continue
+            paper_diff = paper[ahead] - paper[behind]
+            ours_diff = ours[behind] - ours[ahead]
+            if paper_diff > 0 and ours_diff > 0:
+                tie = min(paper_diff, ours_diff) <= TIE + 1e-9
+                swaps.append({"paper_ahead": ahead, "ours_ahead": behind,
+                              "paper_diff": round(paper_diff, 6), "ours_diff": round(ours_diff, 6),
+                              "tie": tie})
+    name = _DATASET_NAMES[dataset]
+    what = (f"{name} NODE^T, positions: CL_score here is from position DTW"
+            if dataset == "robotasks" else f"{name} NODE^{variant.upper()}")
+    parts = [f"Paper: {label} ({what}); \"paper #\" ranks by its CL_score"]
+    shared = [r for r in sorted(set(ranks.values())) if list(ranks.values()).count(r) > 1]
+    if shared:
+        tied = ", ".join("/".join(m.upper() for m in order if ranks[m] == r)
+                         + f" {next(paper[m] for m in order if ranks[m] == r):.2f}"
+                         for r in shared)
+        parts[0] += f", ties sharing a rank ({tied})"
+    parts[0] += "."
+    if len(order) - len(not_compared) < 2:
+        matches = up_to_ties = None
+        parts.append("Not enough CL_scores of ours to compare rankings.")
+    else:
+        matches = not swaps
+        up_to_ties = all(s["tie"] for s in swaps)
+
+        def say(s: dict[str, Any]) -> str:
+            text = (f"{s['paper_ahead'].upper()}/{s['ours_ahead'].upper()} (ours: "
+                    f"{s['ours_ahead'].upper()} ahead by {s['ours_diff']:.2f}; paper: "
+                    f"{s['paper_ahead'].upper()} ahead by {s['paper_diff']:.2f})")
+            return text + (f", a tie (within {TIE})" if s["tie"] else "")
+
+        if matches:
+            parts.append("Our ranking by CL_score equals the paper's.")
+        elif up_to_ties:
+            parts.append(f"Our ranking by CL_score equals the paper's up to ties (CL_scores "
+                         f"within {TIE} in ours or the paper's); swapped: "
+                         + "; ".join(say(s) for s in swaps) + ".")
+        else:
+            parts.append("Our ranking by CL_score differs from the paper's; swapped: "
+                         + "; ".join(say(s) for s in swaps) + ".")
+    if not_compared:
+        parts.append(f"Not compared (no CL_score of ours): "
+                     f"{', '.join(m.upper() for m in not_compared)}.")
+    if meta.get("tasks"):
+        parts.append(f"This grid learns only the first {meta['tasks']} tasks; the paper's "
+                     "table, all of them.")
+    return PaperRanking(label, " ".join(parts), table, None, ranks, paper, matches,
+                        up_to_ties, swaps, not_compared)
 
 
 def _fmt(value: float, key: str) -> str:
@@ -60,8 +244,12 @@ def _cell(row: MethodRow, key: str) -> str:
     return _fmt(med, key)
 
 
-def _markdown(rows: list[MethodRow], meta: dict[str, Any]) -> str:
-    head = ["#", "method", "runs", *[h for _, h in COLUMNS]]
+def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) -> str:
+    heads = [h for _, h in COLUMNS]
+    if paper.label:  # the paper's rank after ours, its CL_score after ours
+        head = ["#", "paper #", "method", "runs", heads[0], "paper CL_score", *heads[1:]]
+    else:
+        head = ["#", "method", "runs", *heads]
     lines = [
         f"# Leaderboard: {meta['dataset']} ({meta['profile']} profile)",
         "",
@@ -80,8 +268,16 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any]) -> str:
     ]
     for idx, row in enumerate(rows, 1):
         runs = f"{row.runs_ok}" + (f" (+{row.runs_failed} failed)" if row.runs_failed else "")
-        cells = [str(idx), row.method.upper(), runs, *[_cell(row, k) for k, _ in COLUMNS]]
+        cells = [_cell(row, k) for k, _ in COLUMNS]
+        if paper.label:
+            m = row.method.lower()
+            p_rank = str(paper.ranks[m]) if m in paper.ranks else "-"
+            p_score = f"{paper.scores[m]:.2f}" if m in paper.scores else "-"
+            cells = [str(idx), p_rank, row.method.upper(), runs, cells[0], p_score, *cells[1:]]
+        else:
+            cells = [str(idx), row.method.upper(), runs, *cells]
         lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", paper.note]
     lines += _failure_table(rows)
     failures = [(row.method, e) for row in rows for e in row.errors]
     if failures:
@@ -112,18 +308,20 @@ def _failure_table(rows: list[MethodRow]) -> list[str]:
     return lines
 
 
-def _csv(rows: list[MethodRow]) -> str:
+def _csv(rows: list[MethodRow], paper: PaperRanking) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer)
     header = ["rank", "method", "runs_ok", "runs_failed"]
     for key, _ in COLUMNS:
         header += [f"{key}_median", f"{key}_q1", f"{key}_q3"]
+    header += ["paper_rank", "paper_cl_score"]  # empty when no paper table matches
     writer.writerow(header)
     for idx, row in enumerate(rows, 1):
         out: list[Any] = [idx, row.method, row.runs_ok, row.runs_failed]
         for key, _ in COLUMNS:
             q1, q3 = row.iqr(key)
             out += [row.median(key), q1, q3]
+        out += [paper.ranks.get(row.method.lower(), ""), paper.scores.get(row.method.lower(), "")]
         writer.writerow(["" if isinstance(v, float) and math.isnan(v) else v for v in out])
     return buffer.getvalue()
 
@@ -135,19 +333,23 @@ def _json_value(value: float) -> float | None:
 def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list[Path]:
     """Write ``leaderboard.md``, ``.csv`` and ``.json`` into ``out``; return their paths."""
     ranked = rank(rows)
+    paper = paper_ranking(ranked, meta)
     out.mkdir(parents=True, exist_ok=True)
     md, cs, js = out / "leaderboard.md", out / "leaderboard.csv", out / "leaderboard.json"
-    atomic_write_text(md, _markdown(ranked, meta))
-    atomic_write_text(cs, _csv(ranked))
+    atomic_write_text(md, _markdown(ranked, meta, paper))
+    atomic_write_text(cs, _csv(ranked, paper))
     payload = {
         "schema_version": 1,
         "meta": meta,
+        "paper": paper.to_dict(),
         "rows": [
             {
                 "rank": idx,
                 "method": row.method,
                 "runs_ok": row.runs_ok,
                 "runs_failed": row.runs_failed,
+                "paper_rank": paper.ranks.get(row.method.lower()),
+                "paper_cl_score": paper.scores.get(row.method.lower()),
                 "errors": row.errors,
                 "exec_failures": row.failures,
                 "metrics": {

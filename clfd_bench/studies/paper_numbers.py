@@ -22,6 +22,7 @@ __all__ = [
     "INFERENCE_COLUMNS",
     "SENSITIVITY_COLUMNS",
     "cl_table",
+    "cl_table_label",
     "cl_tables",
     "inference",
     "load",
@@ -78,6 +79,12 @@ def cl_table(dataset: str, variant: str) -> dict[str, dict[str, float]]:
         valid = ", ".join(f"{d}/{v}" for d, v in cl_tables())
         raise KeyError(f"the paper has no CL table {dataset}/{variant}; it has: {valid}")
     return _rows(tables[dataset][variant], CL_COLUMNS, f"cl.{dataset}.{variant}")
+
+
+def cl_table_label(dataset: str, variant: str) -> str:
+    """The LaTeX label of a CL-metrics table (e.g. ``tab:hw_cl_explicit_time``)."""
+    cl_table(dataset, variant)  # an unknown table fails here, listing the valid ones
+    return str(load()["cl"][dataset][variant]["label"])
 
 
 def train_times(table: str) -> dict[str, list]:
