@@ -11,8 +11,8 @@ import pytest
 
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.metrics.cl import cl_score, cl_stability
+from clfd_bench.metrics.paper_numbers import cl_table
 from clfd_bench.studies.paper_grid import FULL_GRID_RUNS, GridError, grid_cost, paper_grid
-from clfd_bench.studies.paper_numbers import cl_table
 from clfd_bench.studies.paper_tables import build_tables, write_outputs
 
 # --------------------------------------------------------------------------- grid

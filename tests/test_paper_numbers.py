@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from clfd_bench.metrics import paper_numbers
 from clfd_bench.metrics.cl import CRITERIA, cl_score, cl_stability
-from clfd_bench.studies import paper_numbers
 
 PAPER_TEX = Path(__file__).resolve().parents[2] / "shared" / "paper" / "continual-lfd-paper.tex"
 

@@ -17,8 +17,8 @@ from clfd_bench.harness.protocol import run_training
 from clfd_bench.learning.mlp import split_flat
 from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.tangent import quat_log_relative
+from clfd_bench.metrics.paper_numbers import inference
 from clfd_bench.studies import inference_timing as it
-from clfd_bench.studies.paper_numbers import inference
 
 
 def _manual_field(method, index: int, t: float, y: torch.Tensor) -> torch.Tensor:

@@ -5,6 +5,7 @@
     clfd-bench paper run --datasets helloworld --seeds 0 --orders 0 --out results
     clfd-bench paper run --executor ray --address auto --workers 32 --out results
     clfd-bench paper tables --datasets helloworld --out results
+    clfd-bench paper sizes --profile fast                   # FS of the profile's model sizes
 
 The grid: LASA and HelloWorld with SG FT REP SI MAS HN CHN and NODE^T / NODE^I, RoboTasks
 with SG FT REP HN CHN and NODE^T, seeds 0-4, task orders 0-2, profile ``paper``; every
@@ -155,6 +156,32 @@ def _run(args: argparse.Namespace) -> int:
     return 1 if grid.failed else code
 
 
+def _sizes(args: argparse.Namespace) -> int:
+    from clfd_bench.studies.paper_grid import PAPER_GRID
+    from clfd_bench.studies.paper_sizes import size_table
+
+    datasets = args.datasets or list(PAPER_GRID)
+    tolerance = args.tolerance
+    worst = 0.0
+    print(f"final model sizes, profile {args.profile!r}, and the FS they give vs the paper's")
+    header = (f"{'dataset':<11} {'table':<12} {'method':<6} {'params':>12} {'FS':>5} "
+              f"{'paper':>6} {'diff':>6}")
+    print(header)
+    print("-" * len(header))
+    for dataset in datasets:
+        for row in size_table(dataset, args.profile, args.methods):
+            paper = "" if row.paper_fs is None else f"{row.paper_fs:.2f}"
+            diff = "" if row.diff is None else f"{row.diff:+.2f}"
+            flag = "" if row.diff is None or abs(row.diff) <= tolerance else "  off"
+            if row.diff is not None:
+                worst = max(worst, abs(row.diff))
+            print(f"{row.dataset:<11} {row.table:<12} {row.method:<6} {row.params:>12,d} "
+                  f"{row.fs:>5.2f} {paper:>6} {diff:>6}{flag}")
+    print(f"largest |FS - paper|: {worst:.2f} (rows marked 'off' exceed {tolerance}; MAS keeps "
+          "one buffer fewer than the released code: docs/studies/paper.md)")
+    return 0
+
+
 def _safe(func):
     def wrapped(args: argparse.Namespace) -> int:
         from clfd_bench.harness.config import ConfigError
@@ -204,6 +231,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--out", required=True, help="results directory (runs go to OUT/runs)")
     add_executor_arguments(run)
     run.set_defaults(func=_safe(_run))
+    sz = sub.add_parser("sizes", help="final model sizes and the FS they give, vs the paper's")
+    sz.add_argument("--datasets", type=_names, default=None,
+                    help="comma-separated: lasa,helloworld,robotasks (default all)")
+    sz.add_argument("--methods", type=_names, default=None,
+                    help="comma-separated (default: the paper's for each dataset)")
+    sz.add_argument("--profile", default="fast", help="paper, fast (default) or smoke")
+    sz.add_argument("--tolerance", type=float, default=0.05,
+                    help="mark rows whose FS differs from the paper's by more (default 0.05)")
+    sz.set_defaults(func=_safe(_sizes))
     tb = sub.add_parser("tables", help="the paper's tables from the finished runs, vs the paper")
     _add_grid_flags(tb)
     tb.add_argument("--out", required=True, help="results directory holding OUT/runs")

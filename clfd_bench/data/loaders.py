@@ -55,7 +55,8 @@ def _chordal_mean_quaternion(quats: np.ndarray) -> np.ndarray:
     return mean / np.linalg.norm(mean)
 
 
-def _make_task(name, dataset, demos, times, units, sim_scale, source, sha) -> Task:
+def _make_task(name, dataset, demos, times, units, sim_scale, source, sha,
+               demo_times=None) -> Task:
     demo_goals = demos[:, -1, :].copy()
     goal = demo_goals.mean(axis=0)
     if demos.shape[-1] == 7:
@@ -71,6 +72,7 @@ def _make_task(name, dataset, demos, times, units, sim_scale, source, sha) -> Ta
         sim_scale=sim_scale,
         source=str(source),
         sha256=sha,
+        demo_times=demo_times,
     )
 
 
@@ -151,8 +153,10 @@ def _load_lasa(names: tuple[str, ...]):
         sha = check_lasa_file(name, path)
         mat = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
         demos = np.stack([np.asarray(d.pos, dtype=np.float64).T for d in mat["demos"]])
-        times = np.arange(demos.shape[1]) * float(mat["dt"])
-        tasks.append(_make_task(name, "lasa", demos, times, "lasa", LASA_SIM_SCALE, path, sha))
+        times = np.arange(demos.shape[1]) * float(mat["dt"])  # dt: the demos' mean period
+        demo_times = np.stack([np.asarray(d.t, dtype=np.float64) for d in mat["demos"]])
+        tasks.append(_make_task(name, "lasa", demos, times, "lasa", LASA_SIM_SCALE, path, sha,
+                                demo_times))
     return tasks, str(folder)
 
 

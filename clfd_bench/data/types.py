@@ -20,7 +20,9 @@ class Task:
         demos: ``[N, T, D]`` float64. ``D = 2`` for planar data (LASA, HelloWorld),
             ``D = 7`` for poses ``(px, py, pz, qw, qx, qy, qz)``: positions in :attr:`units`,
             unit quaternions scalar first.
-        times: ``[T]`` time stamps in seconds, starting at 0.
+        times: ``[T]`` time stamps in seconds, starting at 0: ``arange(T) / 60`` for the
+            data recorded at 60 Hz, ``arange(T) * dt`` for LASA with the file's ``dt`` (the
+            mean sampling period of its seven demos).
         goal: ``[D]`` where the demonstrations end. Positions: the common end point
             (identical for every demo of every dataset). Quaternion part: the normalised
             chordal mean of the demos' end orientations, which differ by up to ~25 deg
@@ -32,6 +34,9 @@ class Task:
             writing surface (1.0 when the data are already metres).
         source: where the demonstrations were read from (a file path).
         sha256: the sha256 of that file.
+        demo_times: ``[N, T]`` each demo's own time stamps in seconds (default: every demo
+            on :attr:`times`). Only LASA has its own: each demo is resampled to 1000 points
+            over its own duration (heee: 3.91 s to 5.99 s, mean 5.10 s = ``times[-1]``).
     """
 
     name: str
@@ -44,6 +49,7 @@ class Task:
     sim_scale: float
     source: str
     sha256: str
+    demo_times: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.demos.ndim != 3:
@@ -51,11 +57,16 @@ class Task:
         n, t, d = self.demos.shape
         if self.times.shape != (t,):
             raise ValueError(f"task {self.name!r}: times must be [{t}], got {self.times.shape}")
+        if self.demo_times is None:
+            object.__setattr__(self, "demo_times", np.broadcast_to(self.times, (n, t)).copy())
+        elif self.demo_times.shape != (n, t):
+            raise ValueError(f"task {self.name!r}: demo_times must be [{n}, {t}], got "
+                             f"{self.demo_times.shape}")
         if self.goal.shape != (d,) or self.demo_goals.shape != (n, d):
             raise ValueError(
                 f"task {self.name!r}: goal shapes do not match demos {self.demos.shape}"
             )
-        for arr in (self.demos, self.times, self.goal, self.demo_goals):
+        for arr in (self.demos, self.times, self.goal, self.demo_goals, self.demo_times):
             arr.setflags(write=False)
 
     @property

@@ -355,6 +355,22 @@ def _located(method: str, profile: str, key: str, origin: _Origin, problem: str,
     )
 
 
+def _position_tangent_scale(method: str, profile: str, dataset: str, source: str,
+                            is_pose: bool, value: float, origin: _Origin) -> ConfigError:
+    """The error for a ``tangent_scale`` other than 1 on a position model."""
+    shown = _toml_repr(value)
+    if not is_pose:
+        fix = f"drop it ({dataset} has no orientations)"
+    elif origin.kind == "set":
+        fix = f"use --set orientation.tangent_scale={shown}"
+    else:
+        fix = f"set it in [{profile}.{source}.orientation] only"
+    return ConfigError(
+        f"{_where(method, 'tangent_scale', origin)}: tangent_scale = {shown} scales "
+        f"orientation tangent vectors, which the position model does not have; {fix}"
+    )
+
+
 def resolve_config(
     method: str,
     dataset: str,
@@ -458,6 +474,9 @@ def resolve_config(
                 if good is not None and PART_RULES[key].check(key, good)[1]:
                     good = None  # the profile's own value is bad too: no example
                 raise _located(method, profile, key, origin[key], problem, prefix, good)
+        if part == "position" and values.get("tangent_scale", 1.0) != 1.0:
+            raise _position_tangent_scale(method, profile, dataset, source, is_pose,
+                                          values["tangent_scale"], origin["tangent_scale"])
         table_name = f"{profile}.{layers[-1][0]}"
         for key in sorted(allowed - set(values)):  # keys the method uses, left at default
             default = PART_FIELDS[key].default

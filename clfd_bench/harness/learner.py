@@ -2,7 +2,10 @@
 
 * :class:`PartLearner` is one learned model: ``position`` (planar points or 3-D positions,
   normalised per task with the task's mean/std) or ``orientation`` (unit quaternions mapped
-  to tangent vectors ``Log(conj(q_g) * q)``, see :mod:`clfd_bench.learning.tangent`).
+  to tangent vectors ``Log(conj(q_g) * q)``, see :mod:`clfd_bench.learning.tangent`, times
+  the config's ``tangent_scale``). Its time axis is the task's ``times`` or, with
+  ``time_axis = "first_demo"``, the first demo's own time stamps; prediction times are given
+  on the data's axis and mapped onto the NODE's.
 * :class:`Learner` holds the parts of a run (RoboTasks: one position and one orientation
   model trained with the same CL method, as in the paper) and predicts full trajectories in
   data units: ``[N, T, 2]`` planar, ``[N, T, 7]`` poses (metres, unit quaternions w, x, y, z).
@@ -47,39 +50,117 @@ class PartLearner:
     def __init__(self, kind: str, method: Method, cfg: PartConfig):
         if kind not in ("position", "orientation"):
             raise ValueError(f"part kind must be position or orientation, got {kind!r}")
+        if kind == "position" and cfg.tangent_scale != 1.0:
+            raise ValueError(f"tangent_scale = {cfg.tangent_scale:g} is for orientation "
+                             "models; a position model needs tangent_scale = 1")
         self.kind, self.method, self.cfg = kind, method, cfg
         self.normalizers: list[Normalizer] = []
         self.goals: list[np.ndarray | None] = []  # orientation: the task goal quaternion
+        self.time_factors: list[float] = []  # NODE time = data time * factor, per task
 
     # -- data conversion --------------------------------------------------------------
-    def _raw(self, task: Task) -> tuple[np.ndarray, np.ndarray | None]:
-        """The task's demos in this part's space (before normalisation) and the goals."""
+    def _to_raw(self, states: np.ndarray, goals: np.ndarray | None) -> np.ndarray:
+        """Data units -> this part's NODE space before normalisation: positions unchanged,
+        quaternions ``[..., 4]`` -> ``Log(conj(q_g) * q) * tangent_scale`` ``[..., 3]``."""
         if self.kind == "position":
-            return np.asarray(task.positions), None
+            return states
+        return quat_log_relative(states, goals) * self.cfg.tangent_scale
+
+    def _from_raw(self, raw: np.ndarray, goals: np.ndarray | None) -> np.ndarray:
+        """Inverse of :meth:`_to_raw`: tangent vectors are divided by ``tangent_scale``
+        before the Exp map, so predictions are in data units whatever the scale."""
+        if self.kind == "position":
+            return raw
+        return quat_exp_relative(raw / self.cfg.tangent_scale, goals)
+
+    def _raw(self, task: Task) -> np.ndarray:
+        """The task's demos in this part's space (before normalisation)."""
+        if self.kind == "position":
+            return np.asarray(task.positions)
         quats = task.quaternions
         if quats is None:
             raise ValueError(f"task {task.name!r} has no orientations to learn")
         goals = task.demo_goals[:, 3:] if self.cfg.tangent_goal == "demo" else task.goal[3:]
-        return quat_log_relative(quats, goals), goals
+        return self._to_raw(quats, goals)
+
+    def train_times(self, task: Task) -> np.ndarray:
+        """``[T]`` the NODE's time stamps of ``task``'s samples (``time_axis``)."""
+        if self.cfg.time_axis == "first_demo":
+            return np.asarray(task.demo_times[0], dtype=np.float64)
+        return np.asarray(task.times, dtype=np.float64)
+
+    def time_factor(self, task: Task) -> float:
+        """NODE time per second of ``task.times``: 1, or for ``first_demo`` the ratio of the
+        first demo's sampling period to the task's (heee: 3.91 s / 5.10 s = 0.767).
+
+        Raises:
+            ValueError: the first demo's stamps are not ``task.times`` times one factor
+                (not evenly sampled, or not starting at 0).
+        """
+        if self.cfg.time_axis == "uniform":
+            return 1.0
+        node_t, data_t = self.train_times(task), np.asarray(task.times, dtype=np.float64)
+        factor = float(node_t[-1] / data_t[-1])
+        if not np.allclose(node_t, factor * data_t, rtol=1e-9, atol=1e-12):
+            raise ValueError(
+                f"task {task.name!r}: the first demo's time stamps are not the task's times "
+                f"scaled by one factor, which time_axis = first_demo needs; use "
+                f"time_axis = uniform"
+            )
+        return factor
 
     def task_data(self, task: Task) -> tuple[TaskData, Normalizer]:
         """Training data of ``task`` and the normaliser fitted on it."""
-        raw, _ = self._raw(task)
+        raw = self._raw(task)
         norm = Normalizer.fit(raw) if self.cfg.normalize else Normalizer.identity(raw.shape[-1])
         demos = torch.as_tensor(norm.apply(raw), dtype=torch.float32)
-        times = torch.tensor(np.asarray(task.times), dtype=torch.float32)
+        times = torch.tensor(self.train_times(task), dtype=torch.float32)
         return TaskData(demos, times), norm
 
+    def node_states(self, index: int, states: np.ndarray,
+                    goals: np.ndarray | None = None) -> np.ndarray:
+        """Data-unit states of task ``index`` as its NODE sees them (tangent map, scale,
+        normaliser): ``[N, 2|3]`` positions or ``[N, 4]`` quaternions -> ``[N, 2|3]``.
+
+        Args:
+            goals: orientation only, as for :meth:`predict` (default: the task's goal).
+        """
+        states = np.asarray(states, dtype=np.float64)
+        if self.kind == "orientation":
+            goals = self.goals[index] if goals is None else np.asarray(goals, dtype=np.float64)
+        return self.normalizers[index].apply(self._to_raw(states, goals))
+
+    def data_states(self, index: int, states: np.ndarray,
+                    goals: np.ndarray | None = None) -> np.ndarray:
+        """Inverse of :meth:`node_states`: NODE states ``[..., 2|3]`` of task ``index`` ->
+        data units (orientation: divided by ``tangent_scale``, then the Exp map)."""
+        if self.kind == "orientation":
+            goals = self.goals[index] if goals is None else np.asarray(goals, dtype=np.float64)
+        raw = self.normalizers[index].invert(np.asarray(states, dtype=np.float64))
+        return self._from_raw(raw, goals)
+
+    def node_times(self, index: int, times: np.ndarray) -> np.ndarray:
+        """Times on the data's axis (seconds, e.g. ``task.times``) -> the NODE's axis."""
+        return np.asarray(times, dtype=np.float64) * self.time_factors[index]
+
     # -- training ---------------------------------------------------------------------
+    def add_task(self, task: Task) -> TaskData:
+        """Add ``task`` to the model untrained (its normaliser, goal and time factor) and
+        return its training data."""
+        data, norm = self.task_data(task)
+        factor = self.time_factor(task)
+        self.method.add_task()
+        self.normalizers.append(norm)
+        self.time_factors.append(factor)
+        self.goals.append(None if self.kind == "position" else np.asarray(task.goal[3:]))
+        return data
+
     def learn(self, index: int, task: Task, generator: torch.Generator, desc: str) -> TrainStats:
         """Add task ``index`` to the model and train it (the global RNG is seeded by the caller)."""
         if index != self.method.num_tasks:
             raise ValueError(f"tasks are learned in order: expected task {self.method.num_tasks}, "
                              f"got {index}")
-        data, norm = self.task_data(task)
-        self.method.add_task()
-        self.normalizers.append(norm)
-        self.goals.append(None if self.kind == "position" else np.asarray(task.goal[3:]))
+        data = self.add_task(task)
         return train_task(self.method, index, data, self.cfg, generator, desc=desc)
 
     # -- prediction -------------------------------------------------------------------
@@ -95,7 +176,9 @@ class PartLearner:
 
         Args:
             starts: ``[N, 2|3]`` positions, or ``[N, 4]`` quaternions for orientation.
-            times: ``[T]`` seconds (the NODE^T time input), starting where the starts are.
+            times: ``[T]`` seconds on the data's time axis (``task.times`` reproduces the
+                demos), starting where the starts are; mapped onto the NODE's axis
+                (:meth:`node_times`) for the NODE^T time input.
             goals: orientation only: ``[N, 4]`` or ``[4]`` goal quaternions for the tangent
                 map; default: the task's goal (for ``tangent_goal = "demo"`` pass each demo's
                 final quaternion to reproduce the paper's protocol).
@@ -105,13 +188,8 @@ class PartLearner:
         """
         if not 0 <= index < self.method.num_tasks:
             raise IndexError(f"task {index} not learned (learned: {self.method.num_tasks})")
-        starts = np.asarray(starts, dtype=np.float64)
-        if self.kind == "orientation":
-            goals = self.goals[index] if goals is None else np.asarray(goals, dtype=np.float64)
-            starts = quat_log_relative(starts, goals)
-        norm = self.normalizers[index]
-        y0 = torch.as_tensor(norm.apply(starts), dtype=torch.float32)
-        t = torch.tensor(np.array(times, dtype=np.float64), dtype=torch.float32)
+        y0 = torch.as_tensor(self.node_states(index, starts, goals), dtype=torch.float32)
+        t = torch.tensor(self.node_times(index, times), dtype=torch.float32)
         self.method.eval()
         try:
             out = integrate(self.method.field(index), y0, t, solver_spec(self.cfg, evaluation=True))
@@ -123,10 +201,7 @@ class PartLearner:
                 f"({exc}); lower lr (now {self.cfg.lr:g}) or use a more accurate eval_solver",
                 self.method.num_tasks - 1,
             ) from exc
-        traj = norm.invert(out.double().numpy())
-        if self.kind == "orientation":
-            traj = quat_exp_relative(traj, goals)
-        return traj
+        return self.data_states(index, out.double().numpy(), goals)
 
     # -- checkpoint -------------------------------------------------------------------
     def header(self) -> dict[str, Any]:
@@ -136,6 +211,7 @@ class PartLearner:
             "num_tasks": self.method.num_tasks,
             "normalizers": [n.to_list() for n in self.normalizers],
             "goals": [None if g is None else g.tolist() for g in self.goals],
+            "time_factors": list(self.time_factors),
         }
 
     def restore(self, header: Mapping[str, Any], tensors: Mapping[str, Tensor]) -> None:
@@ -144,6 +220,9 @@ class PartLearner:
         self.method.load_state_dict(dict(tensors), strict=True)
         self.normalizers = [Normalizer.from_list(n) for n in header["normalizers"]]
         self.goals = [None if g is None else np.asarray(g) for g in header["goals"]]
+        # checkpoints from before time_axis existed: every task on the data's axis
+        self.time_factors = [float(f) for f in
+                             header.get("time_factors", [1.0] * header["num_tasks"])]
 
 
 class Learner:
@@ -194,7 +273,7 @@ class Learner:
 
         Args:
             starts: ``[N, D]`` in data units (D = 2, or 7 = position + quaternion w, x, y, z).
-            times: ``[T]`` seconds from the start.
+            times: ``[T]`` seconds from the start on the data's axis (``task.times``).
             goals: poses only: ``[N, 4]`` goal quaternions for the tangent map (default: the
                 task goal; the protocol passes each demo's final quaternion when the config's
                 ``tangent_goal`` is ``demo``).

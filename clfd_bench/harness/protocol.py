@@ -30,7 +30,7 @@ import torch
 from clfd_bench.data import load_dataset
 from clfd_bench.data.types import Dataset
 from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
-from clfd_bench.harness.config import RunConfig
+from clfd_bench.harness.config import PartConfig, RunConfig
 from clfd_bench.harness.evaluation import (
     metric_units,
     metrics_for,
@@ -113,7 +113,14 @@ def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
 
 
 def _config_without_tasks(d: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in d.items() if k not in ("tasks", "overrides")}
+    out = {k: v for k, v in d.items() if k not in ("tasks", "overrides")}
+    if isinstance(out.get("parts"), dict):  # a key added since the run was saved: its default
+        out["parts"] = {name: _PART_DEFAULTS | values for name, values in out["parts"].items()}
+    return out
+
+
+_PART_DEFAULTS = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default
+                  for f in dataclasses.fields(PartConfig) if f.default is not dataclasses.MISSING}
 
 
 def _diff(a: Any, b: Any, prefix: str = "") -> list[str]:

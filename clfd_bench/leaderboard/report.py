@@ -74,7 +74,7 @@ class PaperRanking:
     Attributes:
         label: the paper table's LaTeX label, or None when no table matches the grid.
         note: the one line printed under the Markdown table.
-        table: ``(dataset, variant)`` of :func:`clfd_bench.studies.paper_numbers.cl_table`.
+        table: ``(dataset, variant)`` of :func:`clfd_bench.metrics.paper_numbers.cl_table`.
         reason: why no table matches (None when one does).
         ranks, scores: method (lower case, as in the grid) -> the paper's rank / CL_score.
         matches: our ranking equals the paper's (None: no table, or nothing to compare).
@@ -113,7 +113,7 @@ class PaperRanking:
 def _paper_table(meta: dict[str, Any]) -> tuple[tuple[str, str] | None, str]:
     """``((dataset, variant), label)`` of the paper table matching the grid, or
     ``(None, reason)``."""
-    from clfd_bench.studies.paper_numbers import cl_table, cl_table_label, cl_tables
+    from clfd_bench.metrics.paper_numbers import cl_table, cl_table_label, cl_tables
 
     dataset, node = meta["dataset"], meta.get("node", "t")
     if dataset not in _DATASET_NAMES:
@@ -145,7 +145,7 @@ def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
     ``meta`` needs ``dataset``, ``methods`` and ``node`` (default ``"t"``); ``tasks`` is
     mentioned when set. See the module docstring for the rules.
     """
-    from clfd_bench.studies.paper_numbers import cl_table
+    from clfd_bench.metrics.paper_numbers import cl_table
 
     table, label = _paper_table(meta)
     if table is None:

@@ -26,6 +26,7 @@ __all__ = [
     "PART_RULES",
     "PartConfig",
     "Rule",
+    "TIME_AXES",
 ]
 
 
@@ -140,6 +141,9 @@ class Rule:
 
 
 _SOLVERS = ADAPTIVE_SOLVERS + FIXED_SOLVERS
+TIME_AXES = ("uniform", "first_demo")
+"""The NODE's time axis: ``uniform`` = the task's ``times`` (LASA: ``arange(T) * dt`` with the
+file's mean ``dt``), ``first_demo`` = the first demo's own time stamps (the released code's)."""
 _SIZE = 65536  # sanity bound of widths and embedding sizes (the paper's largest: 8192)
 
 PART_RULES: dict[str, Rule] = {
@@ -184,6 +188,9 @@ PART_RULES: dict[str, Rule] = {
     # data
     "normalize": Rule("bool"),
     "tangent_goal": Rule("str", choices=("demo", "task")),
+    "tangent_scale": Rule("float", lo=0, lo_open=True,
+                          what="factor on the orientation tangent vectors the NODE learns"),
+    "time_axis": Rule("str", choices=TIME_AXES),
 }
 """The type and valid range of every :class:`PartConfig` field (one entry per field)."""
 
@@ -244,7 +251,12 @@ class PartConfig:
     SI: ``si_c``, ``si_xi``. MAS: ``mas_lambda``; ``mas_points`` data points for the
         importance (0: all samples of the task).
     Data: ``normalize`` (per-task mean/std); ``tangent_goal`` (orientation: ``demo`` = Log
-        relative to each demo's final quaternion as in the paper, ``task`` = the task goal).
+        relative to each demo's final quaternion as in the paper, ``task`` = the task goal);
+        ``tangent_scale`` (orientation only: the NODE learns tangent vectors times this
+        factor, predictions are divided by it before the Exp map; the released RoboTasks
+        orientation commands use 100; with ``normalize`` on, the factor cancels);
+        ``time_axis`` (:data:`TIME_AXES`: ``uniform``, or ``first_demo``, the first demo's own
+        time stamps as the released code; differs only on LASA, where each demo has its own).
     """
 
     iterations: int
@@ -282,6 +294,8 @@ class PartConfig:
     eval_substeps: int | None = None
     normalize: bool = True
     tangent_goal: str = "demo"
+    tangent_scale: float = 1.0
+    time_axis: str = "uniform"
 
     def __post_init__(self) -> None:
         for f in fields(self):

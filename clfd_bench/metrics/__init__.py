@@ -4,6 +4,8 @@
 * :mod:`~clfd_bench.metrics.orientation`: the quaternion error ``E_q``.
 * :mod:`~clfd_bench.metrics.thresholds`: the paper's accuracy thresholds, in any units.
 * :mod:`~clfd_bench.metrics.cl`: ACC, BWT, REM, MS, SSS, TE, FS, CL_score, CL_stability.
+* :mod:`~clfd_bench.metrics.paper_numbers`: the paper's published values of these metrics
+  (its CL tables, training and inference times), read from ``baselines/paper_results.toml``.
 """
 
 from clfd_bench.metrics.orientation import quaternion_error

@@ -7,7 +7,7 @@
   1000-step trajectory.
 - :mod:`~clfd_bench.studies.paper_grid` / :mod:`~clfd_bench.studies.paper_tables`: the full
   paper grid and its tables next to the paper's own numbers
-  (:mod:`~clfd_bench.studies.paper_numbers`).
+  (:mod:`~clfd_bench.metrics.paper_numbers`).
 
 Each has a command: ``clfd-bench study start|order|sensitivity|timing`` and ``clfd-bench paper``.
 """

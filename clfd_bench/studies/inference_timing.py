@@ -21,7 +21,7 @@ records ``nfe``, the number of vector-field evaluations; :func:`load_run` times 
 instead. On a GPU (``torch.cuda``) the device is synchronised before and after each call.
 
 The comparison table puts our medians next to the paper's
-(:func:`clfd_bench.studies.paper_numbers.inference`) with the ratio ours / paper per cell
+(:func:`clfd_bench.metrics.paper_numbers.inference`) with the ratio ours / paper per cell
 (> 1: slower than the paper).
 """
 
@@ -52,7 +52,6 @@ from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.learning.mlp import num_weights
 from clfd_bench.learning.node import VectorField
 from clfd_bench.learning.odeint import SolverSpec, integrate
-from clfd_bench.learning.tangent import quat_log_relative
 from clfd_bench.runs import RunDir
 
 __all__ = [
@@ -162,21 +161,18 @@ def initial_state(part: PartLearner, index: int, task: Task, demo: int = 0) -> T
     """The normalised start state ``[1, D]`` of ``task``'s demo ``demo``, as prediction sees it.
 
     Positions: the demo's first position; orientations: its tangent vector relative to the
-    goal the protocol uses (the demo's final quaternion for ``tangent_goal = "demo"``); both
-    through the task's normaliser.
+    goal the protocol uses (the demo's final quaternion for ``tangent_goal = "demo"``) times
+    ``tangent_scale``; both through the task's normaliser (:meth:`PartLearner.node_states`).
     """
     if part.kind == "position":
-        raw = np.asarray(task.positions[demo, :1], dtype=np.float64)  # [1, D]
-    else:
-        quats = task.quaternions
-        if quats is None:
-            raise ValueError(f"task {task.name!r} has no orientations")
-        if part.cfg.tangent_goal == "demo":
-            goal = np.asarray(task.demo_goals[demo : demo + 1, 3:])
-        else:
-            goal = np.asarray(part.goals[index])[None]
-        raw = quat_log_relative(np.asarray(quats[demo, :1]), goal)  # [1, 3]
-    y0 = part.normalizers[index].apply(raw)
+        return torch.as_tensor(part.node_states(index, task.positions[demo, :1]),
+                               dtype=torch.float32)  # [1, D]
+    quats = task.quaternions
+    if quats is None:
+        raise ValueError(f"task {task.name!r} has no orientations")
+    goal = (np.asarray(task.demo_goals[demo : demo + 1, 3:]) if part.cfg.tangent_goal == "demo"
+            else None)  # None: the task's goal
+    y0 = part.node_states(index, quats[demo, :1], goal)  # [1, 3], tangent_scale applied
     return torch.as_tensor(y0, dtype=torch.float32)
 
 
@@ -203,10 +199,7 @@ def build_learner(
     learner = Learner.from_config(config, ds[0].dim)
     for part in learner.parts.values():
         for task in ds.tasks:
-            _, norm = part.task_data(task)
-            part.method.add_task()
-            part.normalizers.append(norm)
-            part.goals.append(None if part.kind == "position" else np.asarray(task.goal[3:]))
+            part.add_task(task)
     return learner, list(ds.tasks)
 
 
@@ -276,7 +269,7 @@ def timed_parts(
             method=config.method, dataset=config.dataset,
             label=PART_LABELS[(config.dataset, kind)], part=part, index=index,
             y0=initial_state(part, index, task, demo),
-            times=torch.tensor(np.asarray(task.times, dtype=np.float64), dtype=torch.float32),
+            times=torch.tensor(part.node_times(index, task.times), dtype=torch.float32),
             solver=solver_spec(part.cfg, evaluation=True), source=source,
             profile=config.profile, num_tasks=part.method.num_tasks,
         ))
@@ -472,7 +465,7 @@ def comparison_rows(
         cells: measured cells (:func:`measure_part`); those of other devices are ignored.
         device: ``cpu`` or ``cuda``.
         paper: ``{(label, METHOD): {generate_ms, ...}}``; default: the paper's table for
-            the device (:func:`clfd_bench.studies.paper_numbers.inference`).
+            the device (:func:`clfd_bench.metrics.paper_numbers.inference`).
 
     Returns:
         One row per measured (label, method): ``dataset``, ``method``, per quantity ``q``:
@@ -480,7 +473,7 @@ def comparison_rows(
         (ours / paper ms), and ``nfe``.
     """
     if paper is None:
-        from clfd_bench.studies.paper_numbers import inference
+        from clfd_bench.metrics.paper_numbers import inference
 
         paper = inference(paper_device(device))
     by_key = {(c["label"], c["method"]): c for c in cells if c["device"] == device}

@@ -210,7 +210,7 @@ def load_bench_rates(paths: Iterable[Path]) -> dict[tuple[str, str, str], float]
 
 def _gpu_seconds(dataset: str, method: str, tasks: int) -> float | None:
     """The paper's time for one run: mean per-task time over its table's tasks × tasks."""
-    from clfd_bench.studies.paper_numbers import train_times
+    from clfd_bench.metrics.paper_numbers import train_times
 
     total = 0.0
     for table in TRAIN_TIME_TABLES.get(dataset, {}).values():

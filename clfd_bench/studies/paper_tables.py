@@ -13,7 +13,7 @@ does all of this). Tables:
   ``train_time_s_by_part`` ``"position"`` or ``"orientation"``), as the paper trained
   separate models.
 
-Each cell holds ours, the paper's (:func:`clfd_bench.studies.paper_numbers.cl_table`) and
+Each cell holds ours, the paper's (:func:`clfd_bench.metrics.paper_numbers.cl_table`) and
 ours − paper. Our execution success in simulation (exec ACC / REM, from ``sim_cl_metrics``)
 is added as columns the paper does not have (RoboTasks: the whole pose is executed, so both
 tables show the same values). A method without finished runs shows "—" and its count of
@@ -193,7 +193,7 @@ class CLTable:
 
 
 def _paper_cl(spec: TableSpec) -> dict[str, dict[str, float]]:
-    from clfd_bench.studies.paper_numbers import cl_table
+    from clfd_bench.metrics.paper_numbers import cl_table
 
     try:
         return cl_table(spec.dataset, spec.variant)
@@ -275,7 +275,7 @@ def build_time_table(dataset: str, part: str, records: Sequence[RunRecord]) -> T
 
     Returns None when the paper has no such table.
     """
-    from clfd_bench.studies.paper_numbers import train_times
+    from clfd_bench.metrics.paper_numbers import train_times
 
     name = TRAIN_TIME_TABLES.get(dataset, {}).get(part)
     if name is None:

@@ -16,7 +16,7 @@ stores data). Here:
   (each method's median final size, as :func:`~clfd_bench.leaderboard.aggregate.aggregate`
   does) and CL_score / CL_stability over the criteria without SSS;
 * :func:`summarize` gives median and IQR (q3 - q1) per method, next to the paper's
-  (:func:`clfd_bench.studies.paper_numbers.sensitivity`).
+  (:func:`clfd_bench.metrics.paper_numbers.sensitivity`).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ Ranges = dict[str, dict[str, tuple[float, float]]]
 
 def default_ranges() -> Ranges:
     """The paper's ranges (``baselines/paper_results.toml``), keyed by lower-case method."""
-    from clfd_bench.studies.paper_numbers import sensitivity_ranges
+    from clfd_bench.metrics.paper_numbers import sensitivity_ranges
 
     return {m.lower(): dict(r) for m, r in sensitivity_ranges().items()}
 
@@ -272,7 +272,7 @@ def summarize(scores: list[ConfigScore], methods: list[str]) -> dict[str, dict[s
     ``_iqr`` (q3 - q1) over its configurations, next to the paper's ``paper_*_median`` /
     ``paper_*_iqr`` and the differences ``diff_*_median`` (ours - paper; NaN without a paper
     number)."""
-    from clfd_bench.studies.paper_numbers import sensitivity
+    from clfd_bench.metrics.paper_numbers import sensitivity
 
     paper = sensitivity()
     out: dict[str, dict[str, Any]] = {}
