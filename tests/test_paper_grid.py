@@ -233,3 +233,18 @@ def test_cli_run_trains_missing_runs_once(tmp_path, capsys):
     assert results.stat().st_mtime_ns == before
     table = json.loads((tmp_path / "paper_tables.json").read_text())["cl_tables"][0]
     assert table["rows"][0]["runs_done"] == 1 and table["rows"][0]["ours"]["ACC"] is not None
+
+
+def test_each_robotasks_table_takes_fs_from_its_own_model():
+    """The position table's FS compares position models, the orientation table's orientation
+    models (as the paper's tables); a leaderboard of pose runs ranks by the position model."""
+    from clfd_bench.leaderboard.aggregate import _final_size
+    from clfd_bench.studies.paper_tables import _view
+
+    results = {"num_params": [40, 60], "cl_metrics_primary": "dtw",
+               "num_params_by_part": {"position": [10, 20], "orientation": [30, 40]},
+               "cl_metrics_by_metric": {"dtw": {}, "quaternion": {}}}
+    assert _final_size(_view(results, "dtw", "position")) == 20
+    assert _final_size(_view(results, "quaternion", "orientation")) == 40
+    assert _final_size(results) == 20
+    assert _final_size({"num_params": [5, 7]}) == 7  # planar runs: the whole model

@@ -134,6 +134,7 @@ def _view(results: dict[str, Any], metric: str, part: str) -> dict[str, Any]:
     """``results`` with ``cl_metrics``, ``num_params``, ``train_time_s`` of one metric / part."""
     view = dict(results)
     view["cl_metrics"] = (results.get("cl_metrics_by_metric") or {}).get(metric, {})
+    view["cl_metrics_primary"] = metric  # FS then takes this metric's model (aggregate)
     view["num_params"] = (results.get("num_params_by_part") or {}).get(
         part, results.get("num_params", []))
     view["train_time_s"] = (results.get("train_time_s_by_part") or {}).get(
