@@ -88,10 +88,7 @@ def bench_method(
         timed = dataclasses.replace(part.cfg, iterations=iterations)
         for index in range(max(tasks) + 1):
             gen = torch.Generator().manual_seed(seed + index)
-            data, norm = part.task_data(ds[index])
-            part.method.add_task()
-            part.normalizers.append(norm)
-            part.goals.append(None)
+            data = part.add_task(ds[index])
             if index not in tasks:
                 train_task(part.method, index, data, short, gen)
                 continue

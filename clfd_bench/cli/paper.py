@@ -161,6 +161,7 @@ def _sizes(args: argparse.Namespace) -> int:
     from clfd_bench.studies.paper_sizes import size_table
 
     datasets = args.datasets or list(PAPER_GRID)
+    rows = [row for dataset in datasets for row in size_table(dataset, args.profile, args.methods)]
     tolerance = args.tolerance
     worst = 0.0
     print(f"final model sizes, profile {args.profile!r}, and the FS they give vs the paper's")
@@ -168,15 +169,14 @@ def _sizes(args: argparse.Namespace) -> int:
               f"{'paper':>6} {'diff':>6}")
     print(header)
     print("-" * len(header))
-    for dataset in datasets:
-        for row in size_table(dataset, args.profile, args.methods):
-            paper = "" if row.paper_fs is None else f"{row.paper_fs:.2f}"
-            diff = "" if row.diff is None else f"{row.diff:+.2f}"
-            flag = "" if row.diff is None or abs(row.diff) <= tolerance else "  off"
-            if row.diff is not None:
-                worst = max(worst, abs(row.diff))
-            print(f"{row.dataset:<11} {row.table:<12} {row.method:<6} {row.params:>12,d} "
-                  f"{row.fs:>5.2f} {paper:>6} {diff:>6}{flag}")
+    for row in rows:
+        paper = "" if row.paper_fs is None else f"{row.paper_fs:.2f}"
+        diff = "" if row.diff is None else f"{row.diff:+.2f}"
+        flag = "" if row.diff is None or abs(row.diff) <= tolerance else "  off"
+        if row.diff is not None:
+            worst = max(worst, abs(row.diff))
+        print(f"{row.dataset:<11} {row.table:<12} {row.method:<6} {row.params:>12,d} "
+              f"{row.fs:>5.2f} {paper:>6} {diff:>6}{flag}")
     print(f"largest |FS - paper|: {worst:.2f} (rows marked 'off' exceed {tolerance}; MAS keeps "
           "one buffer fewer than the released code: docs/studies/paper.md)")
     return 0
@@ -185,11 +185,12 @@ def _sizes(args: argparse.Namespace) -> int:
 def _safe(func):
     def wrapped(args: argparse.Namespace) -> int:
         from clfd_bench.harness.config import ConfigError
+        from clfd_bench.methods import UnknownMethodError
         from clfd_bench.studies.paper_grid import GridError
 
         try:
             return func(args)
-        except (GridError, ConfigError) as exc:
+        except (GridError, ConfigError, UnknownMethodError) as exc:
             print(f"clfd-bench paper {args.paper_command}: error: {exc}", file=sys.stderr)
             return 2
 

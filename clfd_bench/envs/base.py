@@ -503,14 +503,10 @@ class PandaEnv(gym.Env):
 
     def _check_blowup(self, step: int) -> str | None:
         d = self.data
-        base = self._warn_base
-        stats = self._warn_stats
-        if (stats[0].number <= base[0] and stats[1].number <= base[1]
-                and stats[2].number <= base[2]
-                and math.isfinite(d.qpos @ d.qpos + d.qvel @ d.qvel)):
+        counts = [w.number for w in self._warn_stats]
+        new = [n > b for n, b in zip(counts, self._warn_base, strict=True)]
+        if not any(new) and math.isfinite(d.qpos @ d.qpos + d.qvel @ d.qvel):
             return None
-        counts = np.array([w.number for w in stats])
-        new = counts > base
         names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
         what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"
         return (f"physics blow-up at step {step} ({what}); the scene is unstable: "

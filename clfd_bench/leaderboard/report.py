@@ -44,6 +44,7 @@ from typing import Any
 from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
+from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 
 __all__ = ["COLUMNS", "TIE", "PaperRanking", "paper_ranking", "rank", "write_tables"]
 
@@ -64,7 +65,6 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 TIE = 0.02
 """A swap of two methods whose CL_scores differ by at most this (ours or the paper's) is a tie."""
 
-_DATASET_NAMES = {"lasa": "LASA", "helloworld": "HelloWorld", "robotasks": "RoboTasks"}
 
 
 @dataclass
@@ -116,7 +116,7 @@ def _paper_table(meta: dict[str, Any]) -> tuple[tuple[str, str] | None, str]:
     from clfd_bench.metrics.paper_numbers import cl_table, cl_table_label, cl_tables
 
     dataset, node = meta["dataset"], meta.get("node", "t")
-    if dataset not in _DATASET_NAMES:
+    if dataset not in DATASET_LABELS:
         return None, f"the paper has no CL table for {dataset}"
     if dataset == "robotasks":
         if node != "t":
@@ -169,7 +169,7 @@ def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
                 swaps.append({"paper_ahead": ahead, "ours_ahead": behind,
                               "paper_diff": round(paper_diff, 6), "ours_diff": round(ours_diff, 6),
                               "tie": tie})
-    name = _DATASET_NAMES[dataset]
+    name = DATASET_LABELS[dataset]
     what = (f"{name} NODE^T, positions: CL_score here is from position DTW"
             if dataset == "robotasks" else f"{name} NODE^{variant.upper()}")
     parts = [f"Paper: {label} ({what}); \"paper #\" ranks by its CL_score"]

@@ -19,6 +19,7 @@ from clfd_bench.resources import resource_path
 
 __all__ = [
     "CL_COLUMNS",
+    "DATASET_LABELS",
     "INFERENCE_COLUMNS",
     "SENSITIVITY_COLUMNS",
     "cl_table",
@@ -31,6 +32,8 @@ __all__ = [
     "train_times",
 ]
 
+DATASET_LABELS = {"lasa": "LASA", "helloworld": "HelloWorld", "robotasks": "RoboTasks"}
+"""How the paper names the datasets it has tables for."""
 CL_COLUMNS = ("ACC", "REM", "MS", "TE", "FS", "SSS", "CL_score", "CL_stability")
 INFERENCE_COLUMNS = (
     "generate_ms", "generate_hz", "step_ms", "step_hz", "integrate_ms", "integrate_hz",

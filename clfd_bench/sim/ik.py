@@ -86,7 +86,6 @@ class PoseTracker:
             raise ValueError(f"model has no {frame_type} named {frame!r}")
         self._target_pos: np.ndarray | None = None
         self._target_quat: np.ndarray | None = None
-        self._wxyz_xyz = np.empty(7)
         self.configuration = mink.Configuration(model)
         self.frame_task = mink.FrameTask(frame, frame_type, position_cost=position_cost,
                                          orientation_cost=orientation_cost,
@@ -150,10 +149,7 @@ class PoseTracker:
             raise ValueError("target quaternion has zero norm; pass a unit quaternion (w, x, y, z)")
         self._target_pos = pos
         self._target_quat = quat / n
-        wxyz_xyz = self._wxyz_xyz
-        wxyz_xyz[:4] = self._target_quat
-        wxyz_xyz[4:] = pos
-        self.frame_task.set_target(mink.SE3(wxyz_xyz.copy()))
+        self.frame_task.set_target(mink.SE3(np.concatenate([self._target_quat, pos])))
 
     def step(self, iterations: int | None = None) -> None:
         """Runs QP iterations towards the current target (default `self.iterations`)."""
@@ -239,7 +235,7 @@ class _TrackingQP:
     right-hand side only on `dt`. Per iteration only mink's frame-task residual (error and
     Jacobian, mink's own code), the posture error and the configuration limit's right-hand
     side are computed, with the same operations in the same order as mink, so the problem is
-    the same to the last bit (`tests/test_ik.py` compares it with `mink.build_ik`).
+    the same to the last bit (`tests/test_sim_ik.py` compares it with `mink.build_ik`).
 
     Used when the model has no free or ball joints (the robot-only models); otherwise
     `PoseTracker` calls `mink.solve_ik`.
@@ -302,10 +298,7 @@ class _TrackingQP:
         e[6:] = ep
         H = W.T @ W
         c = -(e @ W)
-        mu_total = 0.0
-        mu_total += mu_frame
-        mu_total += mu_posture
-        H.flat[:: model.nv + 1] += 1e-12 + mu_total
+        H.flat[:: model.nv + 1] += 1e-12 + (mu_frame + mu_posture)  # mink's order of sums
         # Configuration limit (mink's formula), then the velocity limit (constant for a dt).
         lim = self.conf_limit
         mujoco.mj_differentiatePos(model, self.dq_max, 1.0, q, lim.upper)

@@ -41,6 +41,7 @@ from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.leaderboard.runner import collect
+from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.studies.paper_grid import PAPER_GRID, TRAIN_TIME_TABLES
 
 __all__ = [
@@ -94,8 +95,7 @@ class TableSpec:
     def title(self) -> str:
         if self.dataset == "robotasks":
             return f"RoboTasks, {self.variant} (NODE^{self.node.upper()})"
-        names = {"lasa": "LASA", "helloworld": "HelloWorld"}
-        return f"{names.get(self.dataset, self.dataset)}, NODE^{self.node.upper()}"
+        return f"{DATASET_LABELS.get(self.dataset, self.dataset)}, NODE^{self.node.upper()}"
 
 
 def table_specs(specs: Sequence[RunSpec]) -> list[TableSpec]:
