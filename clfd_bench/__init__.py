@@ -3,13 +3,26 @@
 Importing the package registers the Gymnasium environments (namespace ``clfd``), so
 ``gymnasium.make("clfd/PlateStacking-v2")`` works after ``import clfd_bench``. Registration
 uses string entry points: nothing heavy (MuJoCo, torch) is imported until an env is made.
+
+``clfd_bench.score_predictions(...)`` scores predictions made elsewhere into a run directory
+(:func:`clfd_bench.harness.external.score_predictions`, imported on first use).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+__all__ = ["__version__", "score_predictions"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "score_predictions":
+        from clfd_bench.harness.external import score_predictions
+
+        return score_predictions
+    raise AttributeError(f"module 'clfd_bench' has no attribute {name!r}")
 
 
 def _register_envs() -> None:

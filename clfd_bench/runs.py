@@ -1,9 +1,10 @@
 """Run directories: the one module that reads and writes them.
 
-A run directory is what ``clfd-bench train --out RUN_DIR`` fills::
+A run directory is what ``clfd-bench train --out RUN_DIR`` fills (``clfd-bench score``, which
+scores predictions made elsewhere, fills the same files but for the checkpoints)::
 
     RUN_DIR/
-      results.json                   training results, then the execution fields
+      results.json                   training (or scoring) results, then the execution fields
       checkpoint.pt                  model + progress (resumes the run)
       checkpoints/after_task_{i}.pt  with --keep-checkpoints
       predictions/after_task_{i}.npz arrays task_{j} [N, T, D], j <= i
@@ -203,6 +204,10 @@ class RunDir:
     def exists(self) -> bool:
         return self.path.is_dir()
 
+    def entries(self) -> list[str]:
+        """The names in the run directory, sorted (empty when it does not exist)."""
+        return sorted(p.name for p in self.path.iterdir()) if self.exists() else []
+
     def lock(self, what: str) -> contextlib.AbstractContextManager[Path]:
         """Exclusive ownership of the run for a writer (:func:`exclusive`)."""
         return exclusive(self.path, what)
@@ -242,7 +247,8 @@ class RunDir:
         return doc
 
     def write_training_results(self, results: Mapping[str, Any]) -> dict[str, Any]:
-        """Writes the training fields of ``results.json``; returns what was written.
+        """Writes the training fields of ``results.json`` (for a run scored from external
+        predictions, its scoring fields); returns what was written.
 
         Keys other than the training fields are kept, except execution fields (`SIM_KEYS`)
         that cover another number of tasks than ``results["tasks_done"]``: they are dropped,

@@ -100,8 +100,9 @@ SI_SHAPES = [(1, 3), (1,), (1, 1), (1,)]  # the method adds cond_dim=1
 SI_TASK = TaskData(torch.zeros(1, 2, 1), torch.tensor([0.0, 1.0]))  # SI ignores the data
 
 
-def _si(monkeypatch, theta0: np.ndarray, xi: float, c: float = 0.4):
-    cfg = PartConfig(iterations=1, lr=0.1, node_hidden=(1,), task_emb_dim=1, si_c=c, si_xi=xi)
+def _si(monkeypatch, theta0: np.ndarray, xi: float, c: float = 0.4, merge: str = "per_task"):
+    cfg = PartConfig(iterations=1, lr=0.1, node_hidden=(1,), task_emb_dim=1, si_c=c, si_xi=xi,
+                     importance_merge=merge)
     method = _build(SynapticIntelligence, SI_SPEC, cfg, theta0, monkeypatch)
     assert method.node_spec.param_shapes() == SI_SHAPES
     method.add_task()
@@ -188,15 +189,18 @@ def _gd_steps(A, C, theta, steps):
     return np.array(thetas), np.array(grads)
 
 
-def _si_expected():
-    """Omega and anchor after each of the two tasks, by the closed form."""
-    omega, delta, theta = _gd_closed_form(CURV[0], TARGET[0], THETA0, STEPS[0])
-    importance = [omega / (delta**2 + XI)]
+def _si_expected(merge: str = "per_task"):
+    """Omega and anchor after each of the two tasks, by the closed form; ``cumulative``: the
+    released code's, whose path integral of task 1 still holds task 0's."""
+    omega0, delta, theta = _gd_closed_form(CURV[0], TARGET[0], THETA0, STEPS[0])
+    importance = [omega0 / (delta**2 + XI)]
     anchors = [theta]
     a, c = CURV[1], TARGET[1]
     A = a + 2.0 * C_SI * importance[0]
     C = (a * c + 2.0 * C_SI * importance[0] * anchors[0]) / A
     omega, delta, theta = _gd_closed_form(A, C, anchors[0], STEPS[1])
+    if merge == "cumulative":
+        omega = omega + omega0
     importance.append(importance[0] + omega / (delta**2 + XI))
     anchors.append(theta)
     return importance, anchors, (A, C)
@@ -235,12 +239,16 @@ def test_si_closed_form_is_right_and_discriminating():
     far(importance[0] + omega1 / ((thetas1[-1] - THETA0) ** 2 + XI), importance[1])
 
 
-def test_si_gradient_descent_two_tasks_closed_form(monkeypatch):
+@pytest.mark.parametrize("merge", ["per_task", "cumulative"])
+def test_si_gradient_descent_two_tasks_closed_form(monkeypatch, merge):
     """Two tasks of plain SGD on quadratics through SI's hooks (loop order), the second one
     with SI's own penalty in the loss: path integral, Omega (summed over tasks), anchors and
-    the penalty match the closed form."""
-    importance, anchors, _ = _si_expected()
-    method = _si(monkeypatch, THETA0, XI, C_SI)
+    the penalty match the closed form; ``cumulative`` keeps the path integral across tasks as
+    the released code (and its Omega of task 1 differs clearly from ``per_task``'s)."""
+    importance, anchors, _ = _si_expected(merge)
+    other, _, _ = _si_expected("cumulative" if merge == "per_task" else "per_task")
+    assert np.min(np.abs(importance[1] - other[1]) / np.abs(other[1])) > 1e-2
+    method = _si(monkeypatch, THETA0, XI, C_SI, merge)
     _close(_buffers(method, "anchor"), THETA0)
 
     for task in (0, 1):
@@ -264,7 +272,8 @@ def test_si_gradient_descent_two_tasks_closed_form(monkeypatch):
         _close(_flat(method.weights), anchors[task])
         _close(_buffers(method, "anchor"), anchors[task])
         _close(_buffers(method, "importance"), importance[task])
-        np.testing.assert_array_equal(_buffers(method, "omega"), 0.0)
+        if merge == "per_task":
+            np.testing.assert_array_equal(_buffers(method, "omega"), 0.0)
 
     probe = np.array([0.2, -0.7, 1.3, 0.0, -1.1, 0.6])
     _check_penalty(method, C_SI, probe, importance[1], anchors[1], task=2)
@@ -359,13 +368,15 @@ def _node_mas_expected(theta, emb, demos, selected):
     return np.concatenate([(acc / len(ys)).reshape(-1) for acc in total])
 
 
-@pytest.mark.parametrize("mas_points", [0, 4])
-def test_mas_node_importance_two_tasks(monkeypatch, mas_points):
+@pytest.mark.parametrize(("mas_points", "merge"),
+                         [(0, "per_task"), (4, "per_task"), (0, "cumulative")])
+def test_mas_node_importance_two_tasks(monkeypatch, mas_points, merge):
     """MAS's end-of-task hook on the real NODE: the importance of each task (its own
     embedding and data points, ``mas_points`` of them), their sum over tasks, the anchor,
-    and the penalty."""
+    and the penalty. ``cumulative`` (the released code's merge) adds task 0's importance a
+    second time at the end of task 1, and keeps one more buffer (counted in the size)."""
     cfg = PartConfig(iterations=1, lr=0.1, node_hidden=(2,), task_emb_dim=1,
-                     mas_lambda=MAS_LAMBDA, mas_points=mas_points)
+                     mas_lambda=MAS_LAMBDA, mas_points=mas_points, importance_merge=merge)
     method = _build(MemoryAwareSynapses, MAS_SPEC, cfg, MAS_THETA[0], monkeypatch)
     assert method.node_spec.param_shapes() == MAS_SHAPES
     expected = []
@@ -379,10 +390,15 @@ def test_mas_node_importance_two_tasks(monkeypatch, mas_points):
         method.on_task_end(task, data)
         expected.append(_node_mas_expected(MAS_THETA[task], MAS_EMB[task], MAS_DEMOS[task],
                                            MAS_SELECTED[mas_points]))
+        if merge == "cumulative" and task == 1:
+            expected[1] = expected[1] + expected[0]
         _close(_buffers(method, "importance"), sum(expected))
         _close(_buffers(method, "anchor"), MAS_THETA[task])
     # the second task's own importance differs clearly from the first's (so a sum is visible)
     assert np.min(np.abs(expected[1] - expected[0])) > 1e-3
+    weights = sum(w.numel() for w in method.weights)
+    buffers = 3 if merge == "cumulative" else 2  # importance, anchor (+ running)
+    assert method.num_params() == weights * (1 + buffers) + 2  # + the two embeddings
 
     assert method.extra_loss(_ctx(0)) is None
     probe = MAS_THETA[1] + np.linspace(-0.6, 0.9, MAS_THETA[1].size)

@@ -20,7 +20,10 @@ def _ints(text: str) -> list[int]:
 
 
 def _names(text: str) -> list[str]:
-    return [x.strip().lower() for x in text.split(",") if x.strip()]
+    """Comma-separated names, lower-cased; a plugin's import spec (``module:Class``) keeps
+    its case."""
+    names = (x.strip() for x in text.split(","))
+    return [x if ":" in x else x.lower() for x in names if x]
 
 
 def add_executor_arguments(
@@ -40,7 +43,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from clfd_bench.data import DATASETS
     from clfd_bench.leaderboard.runner import run_leaderboard
-    from clfd_bench.methods import get_method_class
+    from clfd_bench.methods import MethodClassError, get_method_class
 
     if args.dataset not in DATASETS:
         print(f"clfd-bench leaderboard: error: unknown dataset {args.dataset!r}; valid: "
@@ -49,7 +52,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         for method in args.methods:
             get_method_class(method)
-    except KeyError as exc:
+    except (KeyError, MethodClassError) as exc:
         print(f"clfd-bench leaderboard: error: {exc.args[0]}", file=sys.stderr)
         return 2
     result = run_leaderboard(
@@ -65,6 +68,7 @@ def _run(args: argparse.Namespace) -> int:
         executor=args.executor,
         workers=args.workers,
         address=args.address,
+        include=[Path(p) for p in args.include],
     )
     print(
         f"[leaderboard] {len(result.specs)} runs: {len(result.trained)} trained now, "
@@ -88,7 +92,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--dataset", required=True, help="lasa, helloworld, robotasks, robotasks9")
     p.add_argument("--methods", type=_names, default=_names(ALL_METHODS),
-                   help=f"comma-separated CL methods (default {ALL_METHODS})")
+                   help=f"comma-separated CL methods (default {ALL_METHODS}); plugins by "
+                        "name or as package.module:ClassName (docs/methods.md)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
     p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--orders", type=_ints, default=[0], help="task orders (default 0)")
@@ -97,5 +102,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", default="results", help="output directory (default results/)")
+    p.add_argument("--include", action="append", default=[], metavar="RUN_DIR",
+                   help="also put this finished run directory in the leaderboard, under its "
+                        "method label (repeatable): predictions scored with `clfd-bench "
+                        "score`, or a run trained elsewhere")
     add_executor_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count")
     p.set_defaults(func=_run)

@@ -6,7 +6,9 @@ Writes ``OUT/results.json``, ``OUT/checkpoint.pt`` and ``OUT/predictions/after_t
 (see :mod:`clfd_bench.harness.protocol`). Running the same command again resumes an
 interrupted run after its last finished task. Hyperparameters come from
 ``baselines/<method>.toml``; ``--set key=value`` overrides any of them (``--set lr=1e-3``,
-``--set orientation.iterations=500``), and ``--show-config`` prints what a run would use.
+``--set orientation.iterations=500``), and ``--show-config`` prints what a run would use. A
+method of your own: ``--method mypackage.module:MyMethod --config my_method.toml``
+(docs/methods.md).
 
 Exit codes: 0 done; 2 a bad input (config value, option, dataset file, ``--out``), found
 before anything is created or trained, printed as one line; 1 training diverged (one line;
@@ -30,7 +32,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--method", required=True, help="CL method: sg, ft, rep, si, mas, hn, chn")
+    p.add_argument("--method", required=True,
+                   help="CL method: sg, ft, rep, si, mas, hn, chn, an installed plugin's name, "
+                        "or a plugin class as package.module:ClassName or "
+                        "path/to/file.py:ClassName (docs/methods.md)")
+    p.add_argument("--config", default=None, metavar="TOML",
+                   help="the method's hyperparameter file (default baselines/<method>.toml, "
+                        "or a plugin class's own config_file); same tables as baselines/")
     p.add_argument("--dataset", required=True,
                    help="dataset: lasa, helloworld, robotasks, robotasks9")
     p.add_argument("--profile", default="fast",
@@ -107,7 +115,7 @@ def _run(args: argparse.Namespace) -> int:
         check_env_count,
         check_out_dir,
     )
-    from clfd_bench.methods import UnknownMethodError
+    from clfd_bench.methods import MethodClassError, UnknownMethodError
 
     # Validation at the edge: the checks up to check_dataset run before any folder is created
     # or any training starts; a failure is one line on stderr and exit 2 (cli/main.py).
@@ -119,8 +127,9 @@ def _run(args: argparse.Namespace) -> int:
         config = resolve_config(
             args.method, args.dataset, args.profile, seed=args.seed, order=args.order,
             node=args.node, tasks=args.tasks, overrides=args.overrides,
+            config_file=args.config,
         )
-    except (ConfigError, UnknownMethodError) as exc:
+    except (ConfigError, UnknownMethodError, MethodClassError) as exc:
         print(f"clfd-bench train: error: {exc}", file=sys.stderr)
         return 2
     if args.show_config:

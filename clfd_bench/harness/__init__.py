@@ -5,6 +5,7 @@
 * :mod:`~clfd_bench.harness.learner` -- data <-> NODE space (normalisation, tangent map).
 * :mod:`~clfd_bench.harness.protocol` -- :func:`run_training` (``clfd-bench train``).
 * :mod:`~clfd_bench.harness.predict` -- :func:`predict` from a run directory.
+* :mod:`~clfd_bench.harness.external` -- :func:`score_predictions` made elsewhere.
 
 Names are imported lazily so that importing one module does not pull in the others.
 """
@@ -23,6 +24,7 @@ __all__ = [
     "predict",
     "resolve_config",
     "run_training",
+    "score_predictions",
     "train_task",
 ]
 
@@ -36,6 +38,7 @@ _WHERE = {
     "load_learner": "protocol",
     "run_training": "protocol",
     "predict": "predict",
+    "score_predictions": "external",
 }
 
 

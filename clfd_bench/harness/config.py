@@ -137,7 +137,12 @@ def _suggest(key: str, valid: Sequence[str]) -> str:
 
 def _build_part(values: dict[str, Any], where: str) -> PartConfig:
     """A :class:`PartConfig` from plain values (a saved config), every value checked."""
-    coerced = {}
+    coerced: dict[str, Any] = {}
+    extras = values.pop("extras", None) or {}
+    if not isinstance(extras, Mapping):
+        raise ConfigError(f"{where}: extras must be a table of a method's own "
+                          f"hyperparameters, got {extras!r}")
+    coerced["extras"] = {k: tuple(v) if isinstance(v, list) else v for k, v in extras.items()}
     for key, value in values.items():
         if key not in PART_FIELDS:
             raise ConfigError(
@@ -166,10 +171,37 @@ def baselines_file(method: str) -> Path:
     return resource_path("baselines", f"{method}.toml")
 
 
-def _read_baselines(method: str) -> tuple[Path, dict[str, Any]]:
-    path = baselines_file(method)
+@dataclass(frozen=True)
+class _Source:
+    """Where a method's hyperparameters are read from. ``label`` is how messages name the
+    file (``baselines/hn.toml`` for the built-ins, the path for a plugin's)."""
+
+    method: str
+    name: str
+    path: Path
+    label: str
+
+
+def _source(method: str, config_file: str | Path | None = None) -> _Source:
+    from clfd_bench.methods import BUILTIN, get_method_class, method_config_file
+
+    cls = get_method_class(method)
+    name = cls.name
+    if config_file is None and not cls.config_file:
+        path = baselines_file(name)
+    else:
+        path = method_config_file(method, config_file)
+    builtin = method in BUILTIN and config_file is None
+    return _Source(method, name, path, f"baselines/{name}.toml" if builtin else str(path))
+
+
+def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:
+    path = src.path
     if not path.is_file():
-        raise ConfigError(f"no baselines file for method {method!r}: {path} does not exist")
+        fix = ("; pass --config PATH (a TOML with the tables of baselines/*.toml, see "
+               "docs/methods.md) or set the method class's config_file")
+        raise ConfigError(f"no hyperparameter file for method {src.method!r}: {path} does not "
+                          f"exist{fix}")
     try:
         with path.open("rb") as fh:
             return path, tomllib.load(fh)
@@ -181,12 +213,18 @@ def _read_baselines(method: str) -> tuple[Path, dict[str, Any]]:
         raise ConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
-def load_profile_table(method: str, profile: str) -> dict[str, Any]:
-    """The raw ``[profile]`` table of ``baselines/<method>.toml`` (validated structure)."""
+def load_profile_table(method: str, profile: str,
+                       config_file: str | Path | None = None) -> dict[str, Any]:
+    """The raw ``[profile]`` table of the method's hyperparameter file (validated
+    structure): ``baselines/<method>.toml``, or for a plugin ``config_file`` / its own."""
+    return _profile_table(_source(method, config_file), profile)
+
+
+def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
     if profile not in PROFILES:
         raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
                           f"valid: {', '.join(PROFILES)}")
-    path, doc = _read_baselines(method)
+    path, doc = _read_baselines(src)
     top_valid = {"method", "description", *PROFILES}
     for key in doc:
         if key not in top_valid:
@@ -194,8 +232,9 @@ def load_profile_table(method: str, profile: str) -> dict[str, Any]:
                 f"{path}: unknown top-level key {key!r}{_suggest(key, sorted(top_valid))}; "
                 f"valid: {', '.join(sorted(top_valid))}"
             )
-    if doc.get("method") != method:
-        raise ConfigError(f"{path}: 'method' must be {method!r}, got {doc.get('method')!r}")
+    if doc.get("method") != src.name:
+        raise ConfigError(f"{path}: 'method' must be {src.name!r} (the class's name), got "
+                          f"{doc.get('method')!r}")
     if profile not in doc:
         raise ConfigError(f"{path} has no [{profile}] profile; it has: "
                           f"{', '.join(p for p in PROFILES if p in doc)}")
@@ -210,9 +249,10 @@ def load_profile_table(method: str, profile: str) -> dict[str, Any]:
     return table
 
 
-def parse_override(text: str) -> tuple[str | None, str, Any]:
+def parse_override(text: str, own_keys: Sequence[str] = ()) -> tuple[str | None, str, Any]:
     """``"[part.]key=value"`` -> ``(part or None, key, value)``; the value is TOML
-    (``lr=3e-3``, ``node_hidden=[64,64]``, ``solver="rk4"``; bare words are strings)."""
+    (``lr=3e-3``, ``node_hidden=[64,64]``, ``solver="rk4"``; bare words are strings).
+    ``own_keys``: the method's own hyperparameters, valid besides the config keys."""
     if "=" not in text:
         raise ConfigError(f"--set {text}: an override must look like key=value (e.g. lr=1e-3)")
     key, raw = (s.strip() for s in text.split("=", 1))
@@ -226,10 +266,11 @@ def parse_override(text: str) -> tuple[str | None, str, Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
-    if key not in PART_FIELDS:
+    if key not in PART_FIELDS and key not in own_keys:
+        known = [*PART_FIELDS, *own_keys]
         raise ConfigError(
-            f"--set {text}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
-            f"valid keys: {', '.join(PART_FIELDS)}"
+            f"--set {text}: unknown key {key!r}{_suggest(key, known)}; "
+            f"valid keys: {', '.join(known)}"
         )
     return part, key, value
 
@@ -324,38 +365,41 @@ def _toml_line(path: Path, table: str, key: str) -> int | None:
     return None
 
 
-def _where(method: str, key: str, origin: _Origin) -> str:
+def _where(src: _Source, key: str, origin: _Origin) -> str:
     if origin.kind == "set":
         return f"--set {origin.text}"
-    line = _toml_line(baselines_file(method), origin.text, key)
-    return f"baselines/{method}.toml{f' line {line}' if line else ''} [{origin.text}]"
+    line = _toml_line(src.path, origin.text, key)
+    return f"{src.label}{f' line {line}' if line else ''} [{origin.text}]"
 
 
-def _located(method: str, profile: str, key: str, origin: _Origin, problem: str,
-             part: str | None, profile_value: Any = None) -> ConfigError:
+def _located(src: _Source, profile: str, key: str, origin: _Origin, problem: str,
+             part: str | None, profile_value: Any = None,
+             rule: Rule | None = None) -> ConfigError:
     """The one-line error for a bad value: where it came from, what is wrong, the fix."""
     prefix = f"{part}." if part else ""
     if origin.kind == "set":
-        default = PART_FIELDS[key].default
+        field_ = PART_FIELDS.get(key)
+        default = field_.default if field_ is not None else None
+        rule = rule or PART_RULES[key]
         if profile_value is not None:
             hint = f"; the {profile} profile uses {prefix}{key}={_toml_repr(profile_value)}"
-        elif default not in (None, dataclasses.MISSING) and PART_RULES[key].valid(default):
+        elif default not in (None, dataclasses.MISSING) and rule.valid(default):
             hint = f"; the default is {prefix}{key}={_toml_repr(default)}"
         else:
             hint = "; fix or drop this --set"
         return ConfigError(f"--set {origin.text}: {problem}{hint}")
     if origin.kind == "toml":
-        return ConfigError(f"{_where(method, key, origin)}: {problem}; fix it in "
-                           f"{baselines_file(method)}, or override it with "
+        return ConfigError(f"{_where(src, key, origin)}: {problem}; fix it in "
+                           f"{src.path}, or override it with "
                            f"--set {prefix}{key}=VALUE")
     return ConfigError(
-        f"baselines/{method}.toml [{origin.text}] does not set {key}, which method "
-        f"{method!r} needs ({problem}); add {key} = VALUE there, or pass "
+        f"{src.label} [{origin.text}] does not set {key}, which method "
+        f"{src.method!r} needs ({problem}); add {key} = VALUE there, or pass "
         f"--set {prefix}{key}=VALUE"
     )
 
 
-def _position_tangent_scale(method: str, profile: str, dataset: str, source: str,
+def _position_tangent_scale(src: _Source, profile: str, dataset: str, source: str,
                             is_pose: bool, value: float, origin: _Origin) -> ConfigError:
     """The error for a ``tangent_scale`` other than 1 on a position model."""
     shown = _toml_repr(value)
@@ -366,7 +410,7 @@ def _position_tangent_scale(method: str, profile: str, dataset: str, source: str
     else:
         fix = f"set it in [{profile}.{source}.orientation] only"
     return ConfigError(
-        f"{_where(method, 'tangent_scale', origin)}: tangent_scale = {shown} scales "
+        f"{_where(src, 'tangent_scale', origin)}: tangent_scale = {shown} scales "
         f"orientation tangent vectors, which the position model does not have; {fix}"
     )
 
@@ -383,13 +427,19 @@ def resolve_config(
     overrides: Sequence[str] = (),
     method_keys: frozenset[str] | None = None,
     arg_names: Mapping[str, str] | None = None,
+    config_file: str | Path | None = None,
 ) -> RunConfig:
     """Resolve the configuration of one run from the baselines file and overrides, and check
     every value of it (:data:`PART_RULES`, :data:`RUN_RULES`).
 
     Args:
+        method: a built-in name, an installed plugin's name or an import spec
+            (:mod:`clfd_bench.methods.registry`); stored normalised in the config.
         method_keys: the method-specific keys the method accepts (default: looked up in the
-            method registry). Keys outside ``COMMON_KEYS | method_keys`` raise.
+            method registry). Keys outside ``COMMON_KEYS | method_keys`` and the method's
+            ``own_hyperparameters`` raise.
+        config_file: the hyperparameter file (default: ``baselines/<method>.toml``, or a
+            plugin class's ``config_file``).
         arg_names: the command-line option each run-level value came from, named in errors
             (default ``--order``, ``--seed``, ...).
 
@@ -397,12 +447,16 @@ def resolve_config(
         ConfigError: one line naming the bad key or value, where it came from (``--set ...``
             or ``baselines/<method>.toml line N [table]``), the valid range and the fix.
         UnknownMethodError: ``method`` is not registered.
+        MethodClassError: a plugin class does not implement the method interface.
         DatasetError: ``tasks`` is given for ``robotasks9`` and its sequence file is bad.
     """
-    if method_keys is None:
-        from clfd_bench.methods import get_method_class
+    from clfd_bench.methods import get_method_class, normalise_method
 
-        method_keys = get_method_class(method).hyperparameters
+    method = normalise_method(method)
+    method_cls = get_method_class(method)
+    if method_keys is None:
+        method_keys = method_cls.hyperparameters
+    own_rules: Mapping[str, Rule] = method_cls.own_hyperparameters
     allowed = COMMON_KEYS | method_keys
     if dataset not in DATASET_TABLES:
         raise ConfigError(f"unknown dataset {dataset!r}{_suggest(dataset, DATASET_TABLES)}; "
@@ -412,18 +466,19 @@ def resolve_config(
                           f"valid: {', '.join(PROFILES)}")
     check_run_values({"node": node, "order": order, "seed": seed, "tasks": tasks}, dataset,
                      arg_names)
-    parsed = [(text, *parse_override(text)) for text in overrides]
+    parsed = [(text, *parse_override(text, tuple(own_rules))) for text in overrides]
     is_pose = dataset in POSE_DATASETS
     for text, o_part, _, _ in parsed:
         if o_part is not None and not is_pose:
             raise ConfigError(f"--set {text}: {dataset} has one model (position); drop the "
                               f"'{o_part}.' prefix")
-    table = load_profile_table(method, profile)
+    src = _source(method, config_file)
+    table = _profile_table(src, profile)
     source = dataset if dataset in table or dataset not in POSE_DATASETS else "robotasks"
     if source not in table:
         notes = table.get("notes", "")
         raise ConfigError(
-            f"baselines/{method}.toml [{profile}] has no settings for dataset {dataset!r}"
+            f"{src.label} [{profile}] has no settings for dataset {dataset!r}"
             f"{'; ' + notes if notes else ''}; datasets with settings: "
             f"{', '.join(d for d in DATASET_TABLES if d in table)}"
         )
@@ -436,7 +491,7 @@ def resolve_config(
         if is_pose:
             layers.append((f"{source}.{part}", table[source].get(part, {})))
         for layer_name, layer in layers:
-            where = f"baselines/{method}.toml [{profile}.{layer_name}]"
+            where = f"{src.label} [{profile}.{layer_name}]"
             for key, value in layer.items():
                 if key in PARTS_POSE and isinstance(value, dict):
                     if not is_pose:
@@ -447,10 +502,11 @@ def resolve_config(
                                       f"{', '.join(PARTS_POSE)}")
                 if key in _DOC_KEYS:
                     continue
-                if key not in PART_FIELDS:
+                if key not in PART_FIELDS and key not in own_rules:
+                    known = [*PART_FIELDS, *own_rules]
                     raise ConfigError(
-                        f"{where}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
-                        f"valid keys: {', '.join(PART_FIELDS)}"
+                        f"{where}: unknown key {key!r}{_suggest(key, known)}; "
+                        f"valid keys: {', '.join(known)}"
                     )
                 merged[key] = value
                 origin[key] = _Origin("toml", f"{profile}.{layer_name}")
@@ -461,43 +517,54 @@ def resolve_config(
                 origin[key] = _Origin("set", text)
         prefix = part if is_pose else None
         values: dict[str, Any] = {}
+        extras: dict[str, Any] = {}
         for key, value in merged.items():
-            if key not in allowed:
+            if key not in allowed and key not in own_rules:
+                own = sorted(method_keys | set(own_rules))
                 raise ConfigError(
-                    f"{_where(method, key, origin[key])}: {key!r} is not a hyperparameter of "
+                    f"{_where(src, key, origin[key])}: {key!r} is not a hyperparameter of "
                     f"method {method!r} "
-                    f"(its own keys: {', '.join(sorted(method_keys)) or 'none'})"
+                    f"(its own keys: {', '.join(own) or 'none'})"
                 )
-            values[key], problem = PART_RULES[key].check(key, value)
+            rule = own_rules.get(key) or PART_RULES[key]
+            checked, problem = rule.check(key, value)
             if problem:
                 good = from_profile.get(key)
-                if good is not None and PART_RULES[key].check(key, good)[1]:
+                if good is not None and rule.check(key, good)[1]:
                     good = None  # the profile's own value is bad too: no example
-                raise _located(method, profile, key, origin[key], problem, prefix, good)
+                raise _located(src, profile, key, origin[key], problem, prefix, good, rule)
+            (extras if key in own_rules else values)[key] = checked
         if part == "position" and values.get("tangent_scale", 1.0) != 1.0:
-            raise _position_tangent_scale(method, profile, dataset, source, is_pose,
+            raise _position_tangent_scale(src, profile, dataset, source, is_pose,
                                           values["tangent_scale"], origin["tangent_scale"])
         table_name = f"{profile}.{layers[-1][0]}"
         for key in sorted(allowed - set(values)):  # keys the method uses, left at default
             default = PART_FIELDS[key].default
             if default is dataclasses.MISSING:
-                raise ConfigError(f"baselines/{method}.toml [{table_name}]: missing required "
+                raise ConfigError(f"{src.label} [{table_name}]: missing required "
                                   f"key {key!r}; add it there, or pass --set {key}=VALUE")
             _, problem = PART_RULES[key].check(key, default)
             if problem:
-                raise _located(method, profile, key, _Origin("default", table_name), problem,
+                raise _located(src, profile, key, _Origin("default", table_name), problem,
                                prefix)
+        for key in sorted(set(own_rules) - set(extras)):  # own keys have no default
+            if not own_rules[key].optional:
+                raise ConfigError(
+                    f"{src.label} [{table_name}]: missing {key!r}, a hyperparameter of method "
+                    f"{method!r} ({own_rules[key].describe()}); add {key} = VALUE there, or "
+                    f"pass --set {key}=VALUE")
+            extras[key] = None
         full = {f.name: f.default for f in fields(PartConfig)} | values
         for rule in PART_CONSTRAINTS:
             if not rule.holds(full):
                 mine = [k for k in rule.keys if k in origin and origin[k].kind == "set"]
                 lead = (", ".join(f"--set {origin[k].text}" for k in mine) if mine else
-                        f"baselines/{method}.toml [{table_name}]")
+                        f"{src.label} [{table_name}]")
                 others = ", ".join(f"{k} = {_toml_repr(full[k])}" for k in rule.keys
                                    if k not in mine)
                 raise ConfigError(f"{lead}: does not go with {others} "
                                   f"(the {profile} profile's values): {rule.text}")
-        resolved.append((part, PartConfig(**values).resolved()))
+        resolved.append((part, PartConfig(**values, extras=extras).resolved()))
     return RunConfig(
         method=method, dataset=dataset, profile=profile, order=order, seed=seed, node=node,
         tasks=tasks, parts=tuple(resolved), overrides=tuple(overrides),

@@ -1,4 +1,6 @@
-"""Scoring predictions: trajectory errors per demo, accuracy matrices and CL metrics.
+"""Scoring predictions: trajectory errors per demo, accuracy matrices and CL metrics, and the
+``results.json`` document they go into (:func:`results_document`, shared by the training
+protocol and by the scoring of external predictions, :mod:`clfd_bench.harness.external`).
 
 Errors are computed in the data's units (``m`` for HelloWorld/RoboTasks positions, LASA's
 own units, degrees for orientation) and compared with the paper's thresholds converted to
@@ -7,25 +9,37 @@ those units (:func:`clfd_bench.metrics.thresholds.threshold`).
 
 from __future__ import annotations
 
+import platform
+import sys
 from collections.abc import Mapping, Sequence
+from importlib import metadata
 from typing import Any
 
 import numpy as np
 
-from clfd_bench.data.types import Task
+from clfd_bench.data.types import Dataset, Task
+from clfd_bench.io import json_safe
 from clfd_bench.metrics import trajectory_errors
 from clfd_bench.metrics.cl import accuracy_matrix, cl_metrics
 from clfd_bench.metrics.thresholds import threshold
+from clfd_bench.runs import RunDir
 
 __all__ = [
     "POSITION_METRICS",
+    "SCHEMA_VERSION",
+    "dataset_provenance",
     "metric_part",
     "metric_units",
     "metrics_for",
+    "package_versions",
+    "results_document",
     "summarize",
     "task_errors",
     "thresholds_for",
 ]
+
+SCHEMA_VERSION = 1
+"""Version of the ``results.json`` layout (:func:`results_document`)."""
 
 POSITION_METRICS = ("dtw", "frechet", "swept_area")
 """Metrics computed on positions (all datasets); pose data add ``quaternion`` (degrees)."""
@@ -96,19 +110,21 @@ def metric_part(metric: str, by_part: dict[str, Any]) -> str:
 def summarize(
     errors: Mapping[str, Sequence[Sequence[Sequence[float] | None]]],
     thresholds: Mapping[str, float],
-    num_params: Mapping[str, Sequence[float]],
-    stored: Sequence[float],
+    num_params: Mapping[str, Sequence[float]] | None,
+    stored: Sequence[float] | None,
     total_samples: float,
-    train_times: Mapping[str, Sequence[float]],
+    train_times: Mapping[str, Sequence[float]] | None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Accuracy matrices and CL metrics for every metric with a threshold.
 
     Args:
         errors: ``metric -> [i][j][demo]`` (``None`` for ``j > i``).
         thresholds: ``metric -> threshold`` in the errors' units.
-        num_params, train_times: per part (``position``, ``orientation``) per task; the
-            ``quaternion`` metric uses the orientation model's, the others the position's.
-        stored: samples stored after each task. total_samples: all tasks' samples.
+        num_params, train_times: per part (``position``, ``orientation``) ``[M]`` per task;
+            the ``quaternion`` metric uses the orientation model's, the others the
+            position's. None (or a part missing): not known, MS / TE are left None.
+        stored: ``[M]`` samples stored after each task (None: not known, SSS is None).
+        total_samples: all tasks' samples.
 
     Returns:
         ``(accuracy, cl)``: ``metric -> R[i][j]`` (None above the diagonal) and
@@ -116,6 +132,8 @@ def summarize(
     """
     accuracy: dict[str, Any] = {}
     cl: dict[str, Any] = {}
+    sizes_by_part = num_params or {}
+    times_by_part = train_times or {}
     for metric, thr in thresholds.items():
         rows = [
             [None if e is None else [np.nan if x is None else x for x in e] for e in row]
@@ -123,6 +141,92 @@ def summarize(
         ]
         r = accuracy_matrix(rows, thr)
         accuracy[metric] = [[None if np.isnan(v) else float(v) for v in row] for row in r]
-        part = metric_part(metric, num_params)
-        cl[metric] = cl_metrics(r, num_params[part], stored, total_samples, train_times[part])
+        sizes = sizes_by_part.get(metric_part(metric, sizes_by_part))
+        times = times_by_part.get(metric_part(metric, times_by_part))
+        cl[metric] = cl_metrics(r, sizes, stored, total_samples, times)
     return accuracy, cl
+
+
+def package_versions() -> dict[str, str]:
+    """Python, platform and the versions of the packages a result depends on (provenance)."""
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for pkg in ("clfd-bench", "torch", "torchdiffeq", "numpy", "scipy", "mink", "mujoco"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def dataset_provenance(ds: Dataset) -> dict[str, Any]:
+    """The dataset block of ``results.json``'s provenance: name, order, tasks, source, the
+    sha256 of every file."""
+    return {"name": ds.name, "order": ds.order, "tasks": ds.task_names, "source": ds.source,
+            "files": dict(ds.files)}
+
+
+def results_document(
+    config: Mapping[str, Any],
+    dataset: str,
+    tasks: Sequence[Task],
+    state: Mapping[str, Any],
+    *,
+    complete: bool,
+    provenance: Mapping[str, Any],
+    checkpoint: str | None,
+) -> dict[str, Any]:
+    """The training fields of a run's ``results.json`` (:data:`SCHEMA_VERSION`), written by
+    the training protocol and by the scoring of external predictions alike.
+
+    Args:
+        config: the resolved configuration as plain data (``RunConfig.to_dict()``).
+        dataset: the dataset's name; tasks: every task of the run, in order.
+        state: ``tasks`` (names), ``errors`` ``{metric: [i][j][demo]}`` (one row per learned
+            task), and per task: ``train_time_s``, ``num_params``, ``stored_samples``
+            (``[M]`` lists, or None when not known), ``train_time_s_by_part``,
+            ``num_params_by_part`` (``{part: [M]}`` or None), ``iterations_per_s_by_part``,
+            ``final_loss_by_part``.
+        complete: every task of the run is learned.
+        provenance: what ``results.json`` records as ``provenance``.
+        checkpoint: the checkpoint file relative to the run directory (None: none).
+    """
+    tasks = list(tasks)[: len(state["tasks"])]
+    first = tasks[0]
+    thresholds = thresholds_for(dataset, first)
+    metrics = metrics_for(first.is_pose)
+    done = len(state["errors"][metrics[0]])
+    total = float(sum(t.num_demos * t.num_steps for t in tasks))
+    accuracy: dict[str, Any] = {}
+    cl: dict[str, Any] = {}
+    if done:
+        accuracy, cl = summarize(
+            state["errors"], thresholds, state["num_params_by_part"], state["stored_samples"],
+            total, state["train_time_s_by_part"],
+        )
+    primary = "dtw" if "dtw" in cl else next(iter(cl), None)
+    return json_safe({
+        "schema_version": SCHEMA_VERSION,
+        "complete": complete,
+        "config": dict(config),
+        "tasks": state["tasks"],
+        "tasks_done": done,
+        "units": metric_units(first),
+        "metrics": list(metrics),
+        "thresholds": thresholds,
+        "train_time_s": state["train_time_s"],
+        "train_time_s_by_part": state["train_time_s_by_part"],
+        "iterations_per_s_by_part": state["iterations_per_s_by_part"],
+        "final_loss_by_part": state["final_loss_by_part"],
+        "num_params": state["num_params"],
+        "num_params_by_part": state["num_params_by_part"],
+        "stored_samples": state["stored_samples"],
+        "total_samples": total,
+        "errors": state["errors"],
+        "accuracy": accuracy,
+        "cl_metrics": cl.get(primary, {}),
+        "cl_metrics_primary": primary,
+        "cl_metrics_by_metric": cl,
+        "predictions": [RunDir.predictions_name(i) for i in range(done)],
+        "checkpoint": checkpoint,
+        "provenance": dict(provenance),
+    })

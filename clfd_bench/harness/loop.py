@@ -5,11 +5,15 @@ One iteration::
     k = method.pick_task(task)                  # REP may pick an earlier task
     t, y = batch of task k                      # [L], [N, L, D]
     y_hat = integrate(method.field(k), y[:, 0], t)
-    loss = mean((y_hat - y)^2)                  # the original code's MSE
+    loss = mean((y_hat - y)^2)                  # the original code's MSE (trajectory_loss)
     loss.backward()
     extra = method.extra_loss(ctx)              # SI / MAS penalty, HN/CHN look-ahead regulariser
     extra.backward()
+    method.before_step(ctx)                     # may edit .grad (A-GEM projection, PackNet)
     optimizer.step(); schedule.step(); method.after_step()
+
+The batch and solver specs and the loss are pure functions of :mod:`clfd_bench.learning.objective`
+(re-exported here), which methods use too.
 
 A fresh Adam optimiser is created for each task over ``method.trainable(task)``, as in the
 original implementation (its separate embedding optimiser had the same learning rate and
@@ -25,8 +29,8 @@ from dataclasses import dataclass
 import torch
 
 from clfd_bench.harness.config import PartConfig
-from clfd_bench.learning.batches import BatchSampler, BatchSpec
-from clfd_bench.learning.odeint import SolverSpec, integrate
+from clfd_bench.learning.batches import BatchSampler
+from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_loss
 from clfd_bench.methods.base import Method, StepContext, TaskData
 from clfd_bench.progress import progress
 
@@ -92,22 +96,6 @@ class TrainStats:
         return self.iterations / self.loop_seconds if self.loop_seconds > 0 else float("nan")
 
 
-def batch_spec(cfg: PartConfig) -> BatchSpec:
-    """The :class:`BatchSpec` of a part config."""
-    return BatchSpec(kind=cfg.batch, tsub=cfg.tsub, points=cfg.points,
-                     horizon_start=cfg.horizon_start, horizon_ramp=cfg.horizon_ramp,
-                     segments=cfg.segments)
-
-
-def solver_spec(cfg: PartConfig, evaluation: bool = False) -> SolverSpec:
-    """The training (or, with ``evaluation``, prediction) :class:`SolverSpec` of a config."""
-    if evaluation:
-        cfg = cfg.resolved()
-        return SolverSpec(cfg.eval_solver, cfg.eval_rtol, cfg.eval_atol, cfg.eval_substeps,
-                          cfg.solver_backend)
-    return SolverSpec(cfg.solver, cfg.rtol, cfg.atol, cfg.substeps, cfg.solver_backend)
-
-
 def _adam(params: list[torch.nn.Parameter], lr: float) -> torch.optim.Adam:
     """Adam with torch's fused CPU kernel where available (same update, one memory pass)."""
     try:
@@ -170,19 +158,18 @@ def train_task(
         t, y = sampler.sample(it, generator)
         optimizer.zero_grad(set_to_none=True)
         try:
-            y_hat = integrate(method.field(k), y[:, 0], t, solver)
+            loss = trajectory_loss(method.field(k), t, y, solver)
         except (FloatingPointError, AssertionError, RuntimeError) as exc:
             if not solver_blew_up(exc):
                 raise
             bar.close()
             raise _diverged(desc, task, it, cfg, f"the ODE solver failed ({exc})") from exc
-        loss = (y_hat - y).pow(2).mean()
         loss.backward()
-        extra = method.extra_loss(
-            StepContext(task=task, iteration=it, optimizer=optimizer, generator=generator)
-        )
+        ctx = StepContext(task=task, iteration=it, optimizer=optimizer, generator=generator)
+        extra = method.extra_loss(ctx)
         if extra is not None:
             extra.backward()
+        method.before_step(ctx)
         optimizer.step()
         schedule.step()
         method.after_step()

@@ -18,10 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import platform
-import sys
 from collections.abc import Callable
-from importlib import metadata
 from typing import Any
 
 import numpy as np
@@ -32,11 +29,12 @@ from clfd_bench.data.types import Dataset
 from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
 from clfd_bench.harness.config import PartConfig, RunConfig
 from clfd_bench.harness.evaluation import (
-    metric_units,
+    SCHEMA_VERSION,
+    dataset_provenance,
     metrics_for,
-    summarize,
+    package_versions,
+    results_document,
     task_errors,
-    thresholds_for,
 )
 from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.loop import warm_up
@@ -52,9 +50,6 @@ __all__ = [
     "run_training",
     "task_seed",
 ]
-
-SCHEMA_VERSION = 1
-
 
 class RunMismatchError(RuntimeError):
     """The output directory holds a run with a different configuration."""
@@ -87,26 +82,10 @@ def task_seed(seed: int, task: int) -> int:
     return (int(seed) * 1_000_003 + int(task) * 7_919 + 17) % (2**63 - 1)
 
 
-def _versions() -> dict[str, str]:
-    out = {"python": sys.version.split()[0], "platform": platform.platform()}
-    for pkg in ("clfd-bench", "torch", "torchdiffeq", "numpy", "scipy", "mink", "mujoco"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
-
-
 def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
     return {
-        "packages": _versions(),
-        "dataset": {
-            "name": ds.name,
-            "order": ds.order,
-            "tasks": ds.task_names,
-            "source": ds.source,
-            "files": dict(ds.files),
-        },
+        "packages": package_versions(),
+        "dataset": dataset_provenance(ds),
         "seed": config.seed,
         "torch_threads": threads,
     }
@@ -148,47 +127,8 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
 
 def _results(config: RunConfig, ds: Dataset, state: dict, complete: bool,
              provenance: dict) -> dict[str, Any]:
-    tasks = ds.tasks[: len(state["tasks"])]
-    first = tasks[0]
-    thresholds = thresholds_for(ds.name, first)
-    done = len(state["train_time_s"])
-    total = float(sum(t.num_demos * t.num_steps for t in tasks))
-    accuracy: dict[str, Any] = {}
-    cl: dict[str, Any] = {}
-    if done:
-        accuracy, cl = summarize(
-            state["errors"], thresholds, state["num_params_by_part"], state["stored_samples"],
-            total, state["train_time_s_by_part"],
-        )
-    primary = "dtw" if "dtw" in cl else next(iter(cl), None)
-    return json_safe({
-        "schema_version": SCHEMA_VERSION,
-        "complete": complete,
-        "config": config.to_dict(),
-        "tasks": state["tasks"],
-        "tasks_done": done,
-        "units": metric_units(first),
-        "metrics": list(metrics_for(first.is_pose)),
-        "thresholds": thresholds,
-        "train_time_s": state["train_time_s"],
-        "train_time_s_by_part": state["train_time_s_by_part"],
-        "iterations_per_s_by_part": state["iterations_per_s_by_part"],
-        "final_loss_by_part": state["final_loss_by_part"],
-        "num_params": state["num_params"],
-        "num_params_by_part": state["num_params_by_part"],
-        "stored_samples": state["stored_samples"],
-        "total_samples": total,
-        "errors": state["errors"],
-        "accuracy": accuracy,
-        "cl_metrics": cl.get(primary, {}),
-        "cl_metrics_primary": primary,
-        "cl_metrics_by_metric": cl,
-        "predictions": [RunDir.predictions_name(i) for i in range(done)],
-        "checkpoint": CHECKPOINT_FILE,
-        "provenance": provenance,
-    })
-
-
+    return results_document(config.to_dict(), ds.name, ds.tasks, state, complete=complete,
+                            provenance=provenance, checkpoint=CHECKPOINT_FILE)
 
 
 def _checkpoint_payload(learner: Learner) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:

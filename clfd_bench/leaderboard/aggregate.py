@@ -3,6 +3,11 @@
 Input: the ``results.json`` of each run (schema of :mod:`clfd_bench.harness`). FS needs the
 final model sizes of every compared method, so it is computed here, across the grid, and
 CL_score / CL_stability are recomputed with it.
+
+A run scored from predictions made elsewhere (``clfd-bench score``) may not know its model
+size, training time or stored samples (``results.json`` ``not_provided``): its MS, FS, TE, SSS
+and CL_score are then empty, never estimated, and its row records them in ``not_provided``
+(shown as "—"). FS is computed over the methods whose final size is known.
 """
 
 from __future__ import annotations
@@ -44,6 +49,9 @@ class MethodRow:
     values: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
     #: execution failures by kind, summed over the runs that report them (None: no run does).
     failures: dict[str, int] | None = None
+    #: keys some run of the row left empty because it did not provide their inputs
+    #: (``results.json`` ``not_provided``: predictions scored from elsewhere).
+    not_provided: set[str] = field(default_factory=set)
 
     def median(self, key: str) -> float:
         vals = self.values.get(key, [])
@@ -80,7 +88,7 @@ def _final_size(results: dict[str, Any]) -> float:
     primary = results.get("cl_metrics_primary")
     sizes = by_part.get(metric_part(primary, by_part)) if by_part and primary else None
     sizes = sizes or results.get("num_params") or []
-    return float(sizes[-1]) if sizes else float("nan")
+    return float(sizes[-1]) if sizes and sizes[-1] is not None else float("nan")
 
 
 def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
@@ -89,16 +97,21 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
     Keys in ``values``: the trajectory CL criteria and CL_score / CL_stability (with FS
     across the compared methods), ``BWT``, ``exec_ACC`` / ``exec_REM`` / ``exec_BWT`` (from
     simulation, when the run executed), ``train_time_s`` (total), ``final_params``; and
-    ``failures``, the execution failures by kind summed over the runs.
+    ``failures``, the execution failures by kind summed over the runs; ``not_provided``, the
+    keys a run could not fill (module docstring).
     """
     rows = {m: MethodRow(m) for m in methods}
     finished = [r for r in records if r.results is not None and r.status == "done"]
-    # FS: the final model size of each method (median over its runs) against all methods.
+    # FS: the final model size of each method (median over its runs) against all methods
+    # (those whose size is known: predictions scored from elsewhere may not give one).
     sizes: dict[str, float] = {}
     for method in methods:
-        vals = [_final_size(r.results) for r in finished if r.spec.method == method]
+        vals = [v for r in finished if r.spec.method == method
+                if np.isfinite(v := _final_size(r.results))]
         if vals:
             sizes[method] = float(np.median(vals))
+    unknown = {m for m in methods if m not in sizes
+               and any(r.spec.method == m and _not_provided(r.results) for r in finished)}
     for record in records:
         row = rows[record.spec.method]
         if record.status != "done" or record.results is None:
@@ -109,8 +122,9 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
         row.runs_ok += 1
         res = record.results
         cl = dict(res.get("cl_metrics", {}))
-        if len(sizes) == len(methods) and sizes:
+        if len(sizes) + len(unknown) == len(methods) and record.spec.method in sizes:
             cl["FS"] = final_model_size(sizes, record.spec.method)
+        row.not_provided |= _not_provided(res)
         for key in (*CRITERIA, "BWT"):
             if cl.get(key) is not None:
                 row.values[key].append(float(cl[key]))
@@ -127,6 +141,19 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
             row.failures = row.failures or {}
             for kind, n in counts.items():
                 row.failures[kind] = row.failures.get(kind, 0) + int(n)
-        row.values["train_time_s"].append(float(sum(res.get("train_time_s", []))))
-        row.values["final_params"].append(_final_size(res))
+        if res.get("train_time_s"):
+            row.values["train_time_s"].append(float(sum(res["train_time_s"])))
+        if np.isfinite(size := _final_size(res)):
+            row.values["final_params"].append(size)
     return [rows[m] for m in methods]
+
+
+def _not_provided(results: dict[str, Any]) -> set[str]:
+    """The leaderboard keys a run leaves empty for want of inputs (``not_provided``)."""
+    missing = set((results.get("not_provided") or {}).get("criteria") or ())
+    fields = set((results.get("not_provided") or {}).get("fields") or ())
+    if "num_params" in fields:
+        missing.add("final_params")
+    if "train_time_s" in fields:
+        missing.add("train_time_s")
+    return missing

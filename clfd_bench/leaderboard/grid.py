@@ -62,13 +62,23 @@ class RunSpec:
         object.__setattr__(self, "overrides", pairs)
 
     @property
+    def method_dir(self) -> str:
+        """The method's folder name: its name, or for a plugin named by an import spec
+        (``package.module:Class``, ``file.py:Class``) the class's ``name``."""
+        if ":" not in self.method:
+            return self.method
+        from clfd_bench.methods import get_method_class
+
+        return get_method_class(self.method).name
+
+    @property
     def name(self) -> str:
         """A short unique name, also the run's directory below ``<out>/runs/``."""
         tasks = f"_k{self.tasks}" if self.tasks is not None else ""
         sim = "" if self.sim else "_nosim"
         sets = "".join(f"_{k}={v}" for k, v in self.overrides)
         return (
-            f"{self.dataset}/{self.method}/{self.profile}_node{self.node}"
+            f"{self.dataset}/{self.method_dir}/{self.profile}_node{self.node}"
             f"_o{self.order}_s{self.seed}{tasks}{sim}{sets}"
         )
 
@@ -132,10 +142,17 @@ def make_grid(
     """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order."""
     if not methods or not seeds or not orders:
         raise ValueError("a grid needs at least one method, one seed and one order")
-    return [
+    specs = [
         RunSpec(dataset, m, profile, s, o, node, tasks, sim)
         for m, o, s in product(methods, orders, seeds)
     ]
+    folders: dict[str, str] = {}
+    for spec in specs:
+        other = folders.setdefault(spec.method_dir, spec.method)
+        if other != spec.method:
+            raise ValueError(f"methods {other!r} and {spec.method!r} are both named "
+                             f"{spec.method_dir!r}; a grid needs distinct method names")
+    return specs
 
 
 def run_status(spec: RunSpec, root: Path) -> str:

@@ -134,7 +134,9 @@ def plot_error_boxes(records, methods, out: Path, title: str) -> Path | None:
 
 def plot_radar(rows: list[MethodRow], out: Path, title: str) -> Path | None:
     plt = _plt()
-    rows = [r for r in rows if r.runs_ok]
+    # A row with criteria its runs did not provide (predictions scored elsewhere) is left
+    # out rather than drawn with made-up zeros.
+    rows = [r for r in rows if r.runs_ok and not r.not_provided & set(CRITERIA)]
     if not rows:
         return None
     angles = np.linspace(0, 2 * np.pi, len(CRITERIA), endpoint=False)

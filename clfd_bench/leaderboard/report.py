@@ -30,6 +30,11 @@ unchanged and the line says why no paper table matches.
 
 The ``.csv`` and ``.json`` rows carry ``paper_rank`` and ``paper_cl_score`` (empty / null
 when no paper table matches); the ``.json`` also has the comparison under ``"paper"``.
+
+Runs put in with ``--include`` (e.g. predictions scored elsewhere, ``clfd-bench score``) get a
+row under their method label; a cell their run could not fill (no model size, training time
+or stored samples given) shows "—" (``null`` and ``not_provided`` in the ``.json``), never a
+made-up number, and a row without a CL_score ranks after those with one.
 """
 
 from __future__ import annotations
@@ -46,7 +51,8 @@ from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
 from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 
-__all__ = ["COLUMNS", "TIE", "PaperRanking", "paper_ranking", "rank", "write_tables"]
+__all__ = ["COLUMNS", "NOT_PROVIDED", "TIE", "PaperRanking", "paper_ranking", "rank",
+           "write_tables"]
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("CL_score", "CL_score"),
@@ -212,6 +218,10 @@ def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
                         up_to_ties, swaps, not_compared)
 
 
+NOT_PROVIDED = "—"
+"""The cell of a value the run did not provide (predictions scored from elsewhere)."""
+
+
 def _fmt(value: float, key: str) -> str:
     if math.isnan(value):
         return "-"
@@ -225,11 +235,15 @@ def _fmt(value: float, key: str) -> str:
 def rank(rows: list[MethodRow]) -> list[MethodRow]:
     """Rows by median CL_score (trajectory-based), best first; rows without runs last."""
 
-    def key(row: MethodRow) -> tuple[int, float]:
+    have_score = any(not math.isnan(r.median("CL_score")) for r in rows)
+
+    def key(row: MethodRow) -> tuple[int, int, float]:
         score = row.median("CL_score")
+        # Without any CL_score, every row ranks by ACC; else rows without one come after.
+        later = int(have_score and math.isnan(score))
         if math.isnan(score):
             score = row.median("ACC")
-        return (0 if row.runs_ok else 1, -(score if not math.isnan(score) else -1.0))
+        return (0 if row.runs_ok else 1, later, -(score if not math.isnan(score) else -1.0))
 
     return sorted(rows, key=key)
 
@@ -237,7 +251,7 @@ def rank(rows: list[MethodRow]) -> list[MethodRow]:
 def _cell(row: MethodRow, key: str) -> str:
     med = row.median(key)
     if math.isnan(med):
-        return "-"
+        return NOT_PROVIDED if key in row.not_provided else "-"
     q1, q3 = row.iqr(key)
     if len(row.values.get(key, [])) > 1 and (q3 - q1) > 0:
         return f"{_fmt(med, key)} [{_fmt(q1, key)}, {_fmt(q3, key)}]"
@@ -278,6 +292,15 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
             cells = [str(idx), row.method.upper(), runs, *cells]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", paper.note]
+    included = meta.get("included") or []
+    if included:
+        lines += ["", "Included runs (`--include`): " + "; ".join(
+            f"{r['method'].upper()} `{r['path']}`"
+            + (" (scored from external predictions)" if r.get("external") else "")
+            for r in included) + "."]
+    if any(row.not_provided for row in rows):
+        lines += [f"{NOT_PROVIDED}: not provided by the run (predictions scored elsewhere "
+                  "without model size, training time or stored samples); never estimated."]
     lines += _failure_table(rows)
     failures = [(row.method, e) for row in rows for e in row.errors]
     if failures:
@@ -352,6 +375,7 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
                 "paper_cl_score": paper.scores.get(row.method.lower()),
                 "errors": row.errors,
                 "exec_failures": row.failures,
+                "not_provided": sorted(row.not_provided),
                 "metrics": {
                     key: {
                         "median": _json_value(row.median(key)),

@@ -19,6 +19,7 @@ __all__ = [
     "GridRun",
     "LeaderboardResult",
     "collect",
+    "included_records",
     "run_leaderboard",
     "run_specs",
     "validate_plan",
@@ -84,6 +85,54 @@ def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
             except RunFileError as exc:  # changed on disk since the status was read
                 status, error = "failed", str(exc)
         records.append(RunRecord(spec, status, results, error))
+    return records
+
+
+def included_records(paths: list[Path], specs: list[RunSpec],
+                     methods: list[str]) -> list[RunRecord]:
+    """Finished run directories from elsewhere (``--include``): a run scored from external
+    predictions (``clfd-bench score``) or any finished run, as records of the leaderboard,
+    under their run's method label.
+
+    Each must be finished, on the grid's dataset, with as many tasks as the grid's runs, and
+    its label must not be one of the grid's ``methods`` (scored predictions are labelled with
+    ``--method-name``); two included runs with one label are one row (e.g. its seeds).
+
+    Raises:
+        InputError: one line naming the directory and what is wrong.
+    """
+    from clfd_bench.harness.validate import InputError
+
+    records = []
+    wanted = {s.dataset for s in specs}, {s.num_tasks() for s in specs}
+    for path in paths:
+        run = RunDir(path)
+        try:
+            results = run.load_results()
+        except (FileNotFoundError, RunFileError) as exc:
+            raise InputError(f"--include {path}: {exc}") from None
+        config = results.get("config") or {}
+        label = str(config.get("method") or "")
+        dataset, done = config.get("dataset"), int(results.get("tasks_done") or 0)
+        state = run.status(done, sim=False)
+        if state.state != "done" or done == 0:
+            raise InputError(f"--include {path}: the run is not finished ({state.reason}); "
+                             "finish it first")
+        if dataset not in wanted[0]:
+            raise InputError(f"--include {path}: a run on {dataset}, not on this leaderboard's "
+                             f"{', '.join(sorted(wanted[0]))}")
+        if done not in wanted[1]:
+            raise InputError(f"--include {path}: it learned {done} tasks, this leaderboard's "
+                             f"runs {', '.join(map(str, sorted(wanted[1])))}; score or train it "
+                             "with as many (--tasks)")
+        if not label or label in methods:
+            raise InputError(f"--include {path}: its method {label!r} is also in --methods; "
+                             "leave it out of --methods, or score the predictions again with "
+                             "another --method-name")
+        spec = RunSpec(str(dataset), label, str(config.get("profile") or "external"),
+                       int(config.get("seed") or 0), int(config.get("order") or 0),
+                       str(config.get("node") or "t"), done, bool(results.get("success")))
+        records.append(RunRecord(spec, "done", results))
     return records
 
 
@@ -153,11 +202,14 @@ def run_leaderboard(
     executor: str = "local",
     workers: int = 1,
     address: str | None = None,
+    include: list[Path] | tuple[Path, ...] = (),
 ) -> LeaderboardResult:
     """Run the grid's missing runs (finished ones are skipped), then write the leaderboard.
 
     Writes into ``out``: ``runs/...`` (one directory per run), ``leaderboard.md``, ``.csv``,
-    ``.json`` and the figures (PNG).
+    ``.json`` and the figures (PNG). ``include``: finished run directories from elsewhere put
+    in beside the grid's runs (:func:`included_records`), e.g. predictions scored with
+    ``clfd-bench score``; they are read, never written.
     """
     from clfd_bench.harness.validate import InputError, check_count
     from clfd_bench.methods import get_method_class
@@ -171,11 +223,14 @@ def run_leaderboard(
     start = time.perf_counter()
     out = Path(out)
     specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim)
+    # Checked before any work; read, never written.
+    extra = included_records([Path(p) for p in include], specs, methods) if include else []
     grid = run_specs(specs, out, executor, workers, address, desc=f"grid {dataset}")
-    records = grid.records
-    rows = aggregate(records, methods)
+    records = grid.records + extra
+    labels = methods + list(dict.fromkeys(r.spec.method for r in extra))
+    rows = aggregate(records, labels)
     title = f"{dataset} ({profile})"
-    figures = plot_all(records, rows, methods, out, title)
+    figures = plot_all(records, rows, labels, out, title)
     meta = {
         "dataset": dataset,
         "methods": methods,
@@ -187,7 +242,10 @@ def run_leaderboard(
         "sim": sim,
         "executor": executor,
         "figures": [str(p) for p in figures],
-        "runs": {s.name: r.status for s, r in zip(specs, records, strict=True)},
+        "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)},
+        "included": [{"path": str(p), "method": r.spec.method,
+                      "external": bool((r.results.get("provenance") or {}).get("external"))}
+                     for p, r in zip(include, extra, strict=True)],
     }
     files = write_tables(rows, out, meta) + figures
     return LeaderboardResult(

@@ -2,6 +2,7 @@
 
 * :mod:`~clfd_bench.learning.node` -- :class:`NodeSpec`, :class:`VectorField` (NODE^T/NODE^I).
 * :mod:`~clfd_bench.learning.odeint` -- :func:`integrate` (torchdiffeq adaptive or fixed RK4).
+* :mod:`~clfd_bench.learning.objective` -- the training loss of a batch, batch and solver specs.
 * :mod:`~clfd_bench.learning.rk4_fused` -- RK4 through an MLP with a hand-written backward.
 * :mod:`~clfd_bench.learning.hypernet` -- :class:`HyperNetwork`, :class:`ChunkedHyperNetwork`.
 * :mod:`~clfd_bench.learning.hnet_reg` -- the look-ahead step and the output regulariser.
@@ -14,6 +15,7 @@ from clfd_bench.learning.hnet_reg import adam_lookahead, output_regularizer
 from clfd_bench.learning.hypernet import ChunkedHyperNetwork, HyperNetwork
 from clfd_bench.learning.node import NodeSpec, VectorField
 from clfd_bench.learning.normalize import Normalizer
+from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_loss
 from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.tangent import quat_exp_relative, quat_log_relative
 
@@ -27,8 +29,11 @@ __all__ = [
     "SolverSpec",
     "VectorField",
     "adam_lookahead",
+    "batch_spec",
     "integrate",
     "output_regularizer",
     "quat_exp_relative",
     "quat_log_relative",
+    "solver_spec",
+    "trajectory_loss",
 ]

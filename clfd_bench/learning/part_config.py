@@ -21,6 +21,7 @@ __all__ = [
     "COMMON_KEYS",
     "ConfigError",
     "Constraint",
+    "IMPORTANCE_MERGES",
     "PART_CONSTRAINTS",
     "PART_FIELDS",
     "PART_RULES",
@@ -142,6 +143,7 @@ class Rule:
 
 _SOLVERS = ADAPTIVE_SOLVERS + FIXED_SOLVERS
 TIME_AXES = ("uniform", "first_demo")
+IMPORTANCE_MERGES = ("per_task", "cumulative")
 """The NODE's time axis: ``uniform`` = the task's ``times`` (LASA: ``arange(T) * dt`` with the
 file's mean ``dt``), ``first_demo`` = the first demo's own time stamps (the released code's)."""
 _SIZE = 65536  # sanity bound of widths and embedding sizes (the paper's largest: 8192)
@@ -168,6 +170,7 @@ PART_RULES: dict[str, Rule] = {
     "si_xi": Rule("float", lo=0, lo_open=True, what="SI damping; 0 divides by zero"),
     "mas_lambda": Rule("float", lo=0, what="weight of the MAS penalty"),
     "mas_points": Rule("int", lo=0, what="samples for the MAS importance, 0: all"),
+    "importance_merge": Rule("str", choices=IMPORTANCE_MERGES),
     # batches
     "batch": Rule("str", choices=BATCH_KINDS),
     "tsub": Rule("int", lo=2, what="window length in samples"),
@@ -249,7 +252,12 @@ class PartConfig:
         ``sampled`` (``hnet_reg_samples`` past tasks per step); CHN: ``chunk_emb_dim``,
         ``chunk_dim``.
     SI: ``si_c``, ``si_xi``. MAS: ``mas_lambda``; ``mas_points`` data points for the
-        importance (0: all samples of the task).
+        importance (0: all samples of the task). Both: ``importance_merge``
+        (:data:`IMPORTANCE_MERGES`): ``per_task``, each task's importance estimated from that
+        task alone (the paper's equations), or ``cumulative``, the released code's: the
+        running estimate is never reset, so every task's importance also counts all earlier
+        tasks' again (SI: the path integral; MAS: the current-task importance) and the
+        penalty grows about quadratically with the number of tasks.
     Data: ``normalize`` (per-task mean/std); ``tangent_goal`` (orientation: ``demo`` = Log
         relative to each demo's final quaternion as in the paper, ``task`` = the task goal);
         ``tangent_scale`` (orientation only: the NODE learns tangent vectors times this
@@ -277,6 +285,7 @@ class PartConfig:
     si_xi: float = 0.0
     mas_lambda: float = 0.0
     mas_points: int = 0
+    importance_merge: str = "per_task"
     batch: str = "windows"
     tsub: int = 20
     points: int = 50
@@ -296,9 +305,14 @@ class PartConfig:
     tangent_goal: str = "demo"
     tangent_scale: float = 1.0
     time_axis: str = "uniform"
+    extras: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
+        if isinstance(self.extras, Mapping):  # a dict is accepted and stored sorted
+            object.__setattr__(self, "extras", tuple(sorted(self.extras.items())))
         for f in fields(self):
+            if f.name == "extras":
+                continue  # checked by the method's own rules (resolve_config)
             value = getattr(self, f.name)
             if f.name not in COMMON_KEYS and value == f.default:
                 continue  # a method-specific key left at its default: not used by the method
@@ -321,17 +335,41 @@ class PartConfig:
             eval_substeps=self.eval_substeps if self.eval_substeps is not None else self.substeps,
         )
 
+    def extra(self, name: str) -> Any:
+        """The value of a method's own hyperparameter ``name`` (see
+        ``Method.own_hyperparameters``).
+
+        Raises:
+            KeyError: the config has no such value; the message lists the ones it has.
+        """
+        for key, value in self.extras:
+            if key == name:
+                return value
+        raise KeyError(f"no own hyperparameter {name!r} in this config (it has: "
+                       f"{', '.join(k for k, _ in self.extras) or 'none'}); declare it in "
+                       "the method's own_hyperparameters and set it in its TOML")
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (lists for tuples) for JSON."""
+        """Plain data (lists for tuples) for JSON; ``extras`` as a table, left out when
+        empty (so configs of the built-in methods read as before)."""
         out = dataclasses.asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        extras = out.pop("extras")
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        if extras:
+            out["extras"] = {k: list(v) if isinstance(v, tuple) else v for k, v in extras}
+        return out
 
 
-PART_FIELDS: dict[str, dataclasses.Field] = {f.name: f for f in fields(PartConfig)}
+PART_FIELDS: dict[str, dataclasses.Field] = {
+    f.name: f for f in fields(PartConfig) if f.name != "extras"
+}
+"""The configuration keys: every :class:`PartConfig` field but ``extras`` (a method's own
+hyperparameters, which its own rules check)."""
 assert set(PART_RULES) == set(PART_FIELDS), "every PartConfig field needs one PART_RULES entry"
 
 COMMON_KEYS = frozenset(PART_FIELDS) - {
     "task_emb_dim", "hnet_hidden", "hnet_activation", "chunk_emb_dim", "chunk_dim", "beta",
     "hnet_reg", "hnet_reg_samples", "si_c", "si_xi", "mas_lambda", "mas_points",
+    "importance_merge",
 }
 """Keys every method accepts; the rest are method-specific (see ``Method.hyperparameters``)."""

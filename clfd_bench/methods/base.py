@@ -8,17 +8,24 @@ it owns the model (NODE weights, task embeddings, hypernetwork) and supplies
 * :meth:`Method.trainable` -- what the optimiser updates while learning a task,
 * :meth:`Method.field` -- the NODE vector field of a task (for training and prediction),
 * :meth:`Method.extra_loss` -- a regulariser added after the task loss is back-propagated,
+* :meth:`Method.before_step` -- edit the gradients once all are computed, before the
+  optimiser step (A-GEM's projection, PackNet's frozen weights),
 * :meth:`Method.after_step` and :meth:`Method.pick_task` for methods that need them (SI, REP).
 
 Everything a method must remember between tasks is a parameter or buffer of the module, so
 ``state_dict()`` is a complete checkpoint; :meth:`Method.prepare_tasks` rebuilds the
 structure (how many tasks) before ``load_state_dict``.
+
+Methods written outside this package (plugins) subclass :class:`Method` the same way; their
+own hyperparameters are declared in :attr:`Method.own_hyperparameters` and read with
+``self.cfg.extra(name)``. docs/methods.md is the guide.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import torch
@@ -26,7 +33,7 @@ from torch import Tensor, nn
 
 from clfd_bench.learning.batches import BatchSampler, BatchSpec
 from clfd_bench.learning.node import NodeSpec, VectorField
-from clfd_bench.learning.part_config import PartConfig
+from clfd_bench.learning.part_config import PartConfig, Rule
 
 __all__ = ["Method", "StepContext", "TaskData"]
 
@@ -55,7 +62,10 @@ class TaskData:
 
 @dataclass
 class StepContext:
-    """What :meth:`Method.extra_loss` may use in one iteration."""
+    """What :meth:`Method.extra_loss` and :meth:`Method.before_step` may use in one
+    iteration: the task being learned, the iteration (0-based, of ``cfg.iterations``), the
+    task's optimiser and the loop's random generator (batches and task picks draw from it
+    too, so a method that draws from it changes the later batches, reproducibly)."""
 
     task: int
     iteration: int
@@ -75,7 +85,18 @@ class Method(nn.Module):
     """Registered name (``sg``, ``ft``, ...)."""
 
     hyperparameters: ClassVar[frozenset[str]] = frozenset()
-    """Method-specific :class:`PartConfig` keys this method reads."""
+    """Method-specific :class:`PartConfig` keys this method reads (``task_emb_dim``, ``beta``,
+    ...); the common keys (``iterations``, ``lr``, ``node_hidden``, ...) every method gets."""
+
+    own_hyperparameters: ClassVar[Mapping[str, Rule]] = {}
+    """Hyperparameters that are not :class:`PartConfig` fields, each with the rule its value
+    must satisfy (``{"ewc_lambda": Rule("float", lo=0)}``). Their values come from the
+    method's TOML like any key (required there unless the rule is ``optional``) and are read
+    with ``self.cfg.extra("ewc_lambda")``."""
+
+    config_file: ClassVar[str | Path | None] = None
+    """A plugin's hyperparameter file (same tables as ``baselines/<name>.toml``), relative to
+    its module's folder; ``--config`` overrides it. Built-in methods use ``baselines/``."""
 
     def __init__(self, node: NodeSpec, cfg: PartConfig):
         super().__init__()
@@ -121,6 +142,12 @@ class Method(nn.Module):
     def extra_loss(self, ctx: StepContext) -> Tensor | None:
         """A regulariser, back-propagated after the task loss and before the step."""
         return None
+
+    def before_step(self, ctx: StepContext) -> None:
+        """After all gradients of the iteration are computed (task loss and
+        :meth:`extra_loss`), before the optimiser step; may modify ``.grad`` of the trainable
+        parameters in place (A-GEM projects it, PackNet zeroes frozen weights'). A ``.grad``
+        that is None stays None: the optimiser skips that parameter."""
 
     def after_step(self) -> None:
         """After each optimiser step (SI's running importance)."""

@@ -5,14 +5,18 @@ Same loss form as SI with ``lambda`` in place of ``c``; the importance of a NODE
 squared L2 norm of the NODE's output, ``1/N sum_n |d ||f(x_n)||^2 / d theta_k|``. The data
 points are the task's (normalised) demonstration samples with their times and the task's
 embedding: all of them, or ``mas_points`` evenly spaced ones. Importances of successive tasks
-add up; ``theta*`` is the weights after the last task.
+add up; ``theta*`` is the weights after the last task. With ``importance_merge =
+"cumulative"`` the released code's merge is kept (its current-task importance is never reset,
+so task ``l`` adds ``sum_{j<=l}`` of the tasks' estimates; one more buffer, ``running``, which
+the model size counts as the released code's ``omega_curr``).
 
 Where the released code (``tr_mas_node.py``, ``imitation_cl/model/node.py``) differs, this
 follows the paper's equation: the original estimated the importance from 2 x ``num_iter``
 random window starts evaluated at the last time ``t[-1]``, not from the task's data points;
 it computed importance and anchor only from task 1 on (inside ``if calc_reg``), so the first
 task was never protected; its current-task importance was never reset, so earlier tasks'
-importances were added again at every merge; and it cleared gradients once per iteration,
+importances were added again at every merge (available as ``importance_merge =
+"cumulative"``); and it cleared gradients once per iteration,
 taking the absolute value of gradients summed over samples rather than the mean of per-sample
 absolute gradients. (Checked in closed form by ``tests/test_si_mas_closed_form.py``.)
 """
@@ -59,10 +63,19 @@ def output_norm_importance(
 
 
 class MemoryAwareSynapses(ImportancePenaltyMethod):
-    """MAS (see the module docstring). Buffers: ``importance`` (Omega), ``anchor``."""
+    """MAS (see the module docstring). Buffers: ``importance`` (Omega), ``anchor``; with
+    ``importance_merge = "cumulative"`` also ``running`` (the never-reset task importance)."""
 
     name = "mas"
-    hyperparameters = ConditionedNodeMethod.hyperparameters | {"mas_lambda", "mas_points"}
+    hyperparameters = ConditionedNodeMethod.hyperparameters | {
+        "mas_lambda", "mas_points", "importance_merge"
+    }
+
+    def __init__(self, node, cfg):
+        super().__init__(node, cfg)
+        if cfg.importance_merge == "cumulative":
+            for i, w in enumerate(self.weights):
+                self.register_buffer(f"running_{i}", torch.zeros_like(w))
 
     @property
     def strength(self) -> float:
@@ -81,5 +94,7 @@ class MemoryAwareSynapses(ImportancePenaltyMethod):
         )
         with torch.no_grad():
             for i, w in enumerate(self.weights):
+                if self.cfg.importance_merge == "cumulative":
+                    importance[i] = self._buf("running", i).add_(importance[i])
                 self._buf("importance", i).add_(importance[i])
                 self._buf("anchor", i).copy_(w)

@@ -5,9 +5,11 @@ Loss for task m: ``L_m + c * sum_k Omega_k (theta*_k - theta_k)^2`` (paper Eq. s
 ``omega^l_k = -sum_steps g_k * (change of theta_k in that step)`` is the path integral of
 the gradient along task ``l``'s trajectory and ``Delta^l_k`` the total change over task
 ``l``. ``g`` is the gradient the step used (task loss + regulariser), as in the original and
-in van de Ven's SI code. ``omega`` restarts at 0 for every task, as the paper's equation
-states (the original code let it accumulate across tasks). Only the NODE weights are
-regularised; embeddings are not.
+in van de Ven's SI code. With ``importance_merge = "per_task"`` ``omega`` restarts at 0 for
+every task, as the paper's equation states; with ``"cumulative"`` it is never reset, as in the
+released code (``SINODETaskEmbedding``: ``W`` is only ever added to), so task ``l`` adds
+``sum_{j<=l} omega^j / ((Delta^l)^2 + xi)``. Only the NODE weights are regularised;
+embeddings are not.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ class SynapticIntelligence(ImportancePenaltyMethod):
     the last step)."""
 
     name = "si"
-    hyperparameters = ConditionedNodeMethod.hyperparameters | {"si_c", "si_xi"}
+    hyperparameters = ConditionedNodeMethod.hyperparameters | {"si_c", "si_xi", "importance_merge"}
 
     def __init__(self, node, cfg):
         super().__init__(node, cfg)
@@ -39,10 +41,15 @@ class SynapticIntelligence(ImportancePenaltyMethod):
     def strength(self) -> float:
         return self.cfg.si_c
 
+    @property
+    def _reset(self) -> bool:
+        return self.cfg.importance_merge == "per_task"
+
     def on_task_start(self, task: int, data: TaskData) -> None:
         with torch.no_grad():
             for i, w in enumerate(self.weights):
-                self._buf("omega", i).zero_()
+                if self._reset:
+                    self._buf("omega", i).zero_()
                 self._buf("previous", i).copy_(w)
 
     @torch.no_grad()
@@ -60,4 +67,5 @@ class SynapticIntelligence(ImportancePenaltyMethod):
             delta = w - anchor
             self._buf("importance", i).add_(self._buf("omega", i) / (delta.pow(2) + self.cfg.si_xi))
             anchor.copy_(w)
-            self._buf("omega", i).zero_()
+            if self._reset:
+                self._buf("omega", i).zero_()

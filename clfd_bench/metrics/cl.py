@@ -225,43 +225,47 @@ def cl_stability(criteria: Mapping[str, float]) -> float:
 
 def cl_metrics(
     r: np.ndarray,
-    num_params: Sequence[float],
-    stored: Sequence[float],
+    num_params: Sequence[float] | None,
+    stored: Sequence[float] | None,
     total: float,
-    train_times: Sequence[float],
+    train_times: Sequence[float] | None,
     fs: float | None = None,
-) -> dict[str, float]:
+) -> dict[str, float | None]:
     """All CL metrics of one run.
 
     Args:
         r: ``[M, M]`` accuracy matrix (:func:`accuracy_matrix`).
-        num_params: ``[M]`` model size after each task.
-        stored: ``[M]`` training samples kept after each task.
+        num_params: ``[M]`` model size after each task (None: not known).
+        stored: ``[M]`` training samples kept after each task (None: not known).
         total: training samples of all tasks together.
-        train_times: ``[M]`` seconds spent learning each task.
+        train_times: ``[M]`` seconds spent learning each task (None: not known).
         fs: FS, which needs every compared method's final size (:func:`final_model_size`);
             without it FS, CL_score and CL_stability are left out.
 
     Returns:
         ``{"ACC", "REM", "BWT", "MS", "SSS", "TE"}`` plus ``"FS"``, ``"CL_score"`` and
-        ``"CL_stability"`` when ``fs`` is given.
+        ``"CL_stability"`` when ``fs`` is given. A criterion whose input is None (e.g.
+        predictions scored from elsewhere without a model size,
+        :mod:`clfd_bench.harness.external`) is None, never estimated; CL_score and
+        CL_stability are then left out.
     """
     r = _check_r(r)
     m = r.shape[0]
     for name, seq in (("num_params", num_params), ("stored", stored), ("train_times", train_times)):
-        if len(seq) != m:
+        if seq is not None and len(seq) != m:
             raise ValueError(f"{name} needs one value per task ({m}), got {len(seq)}")
-    out = {
+    out: dict[str, float | None] = {
         "ACC": acc(r),
         "REM": rem(r),
         "BWT": bwt(r),
-        "MS": model_size_efficiency(num_params),
-        "SSS": sss(stored, total),
-        "TE": time_efficiency(train_times),
+        "MS": None if num_params is None else model_size_efficiency(num_params),
+        "SSS": None if stored is None else sss(stored, total),
+        "TE": None if train_times is None else time_efficiency(train_times),
     }
     if fs is not None:
         out["FS"] = float(fs)
-        criteria = {k: out[k] for k in CRITERIA}
-        out["CL_score"] = cl_score(criteria)
-        out["CL_stability"] = cl_stability(criteria)
+        if all(out[k] is not None for k in CRITERIA):
+            criteria = {k: out[k] for k in CRITERIA}
+            out["CL_score"] = cl_score(criteria)
+            out["CL_stability"] = cl_stability(criteria)
     return out
