@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from clfd_bench import __version__
+from clfd_bench.version import __version__
 
 __all__ = ["build_parser", "main"]
 

@@ -24,7 +24,7 @@ def get_env(env_id: str, render: bool = False, **kwargs: Any):
     """
     import gymnasium as gym
 
-    import clfd_bench  # noqa: F401  (registers the ids)
+    import clfd_bench.envs  # noqa: F401 - registers the ids (importing the package does)
 
     key = (env_id, bool(render), tuple(sorted(kwargs.items())))
     env = _ENV_CACHE.get(key)

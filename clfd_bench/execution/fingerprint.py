@@ -59,8 +59,8 @@ def sim_provenance(dataset: str, task_names: Sequence[str]) -> dict[str, Any]:
     """
     import gymnasium as gym
 
-    from clfd_bench import __version__
     from clfd_bench.envs.registration import env_id_for
+    from clfd_bench.version import __version__
 
     env_ids: dict[str, str | None] = {}
     for name in task_names:
