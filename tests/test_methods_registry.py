@@ -1,4 +1,5 @@
-"""The seven CL methods: registry, model growth, stored data, regularisers, state round trip."""
+"""The built-in CL methods: registry, model growth, stored data, regularisers, state round trip
+(EWC, A-GEM and PackNet in detail: tests/test_methods_more.py)."""
 
 from __future__ import annotations
 
@@ -26,6 +27,8 @@ CFG = PartConfig(
     iterations=4, lr=1e-2, node_hidden=(8, 8), task_emb_dim=3, hnet_hidden=(6,), beta=0.5,
     hnet_reg="batched", chunk_emb_dim=2, chunk_dim=32, si_c=0.3, si_xi=0.3, mas_lambda=0.1,
     mas_points=20, batch="trajectories", points=8, solver="rk4",
+    extras={"ewc_lambda": 10.0, "ewc_gamma": 1.0, "ewc_batches": 1, "agem_memory": 2,
+            "agem_ref_tasks": 1, "packnet_prune": 0.5, "packnet_retrain": 0.25},
 )
 SPEC = NodeSpec(dim=2, hidden=(8, 8), time_input=True)
 
@@ -49,10 +52,12 @@ def _learn(method, task: int) -> TaskData:
 
 
 def test_registry_names_and_loud_failure():
-    assert list_methods() == ["sg", "ft", "rep", "si", "mas", "hn", "chn"]
+    assert list_methods()[:10] == ["sg", "ft", "rep", "si", "mas", "hn", "chn", "ewc", "agem",
+                                   "packnet"]
     with pytest.raises(UnknownMethodError) as err:
-        get_method_class("ewc")
-    assert "unknown CL method 'ewc'; valid methods: sg, ft, rep, si, mas, hn, chn" in str(err.value)
+        get_method_class("vcl")
+    assert ("unknown CL method 'vcl'; valid methods: sg, ft, rep, si, mas, hn, chn, ewc, agem, "
+            "packnet") in str(err.value)
 
 
 @pytest.mark.parametrize("name", list(METHODS))
@@ -66,7 +71,8 @@ def test_growth_storage_and_state_round_trip(name):
         assert growth == size0  # a whole new NODE per task
     else:
         assert growth == CFG.task_emb_dim  # one embedding per task
-    assert method.stored_samples() == (2 * 3 * 30 if name == "rep" else 0)
+    stored = {"rep": 2 * 3 * 30, "agem": 2 * 2 * 30}  # all demos / agem_memory = 2 of 3
+    assert method.stored_samples() == stored.get(name, 0)
 
     # a fresh instance restored from the state dict predicts the same trajectories
     state = {k: v.clone() for k, v in method.state_dict().items()}

@@ -1,9 +1,10 @@
-"""Continual-learning methods as strategies on one training loop: the paper's seven and any
-plugin (:mod:`clfd_bench.methods.registry`; docs/methods.md).
+"""Continual-learning methods as strategies on one training loop: the paper's seven, three
+more written through the same interface (online EWC, A-GEM, PackNet) and any plugin
+(:mod:`clfd_bench.methods.registry`; docs/methods.md).
 
 >>> from clfd_bench.methods import get_method_class, list_methods
->>> list_methods()[:7]
-['sg', 'ft', 'rep', 'si', 'mas', 'hn', 'chn']
+>>> list_methods()[:10]
+['sg', 'ft', 'rep', 'si', 'mas', 'hn', 'chn', 'ewc', 'agem', 'packnet']
 
 See :class:`clfd_bench.methods.base.Method` for the interface.
 """

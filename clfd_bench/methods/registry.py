@@ -2,7 +2,7 @@
 
 A method is named in one of three ways (``--method`` of every command, ``RunConfig.method``):
 
-* a built-in name (``sg``, ``ft``, ... :data:`BUILTIN`);
+* a built-in name (``sg``, ``ft``, ..., ``ewc``, ``agem``, ``packnet``: :data:`BUILTIN`);
 * the name of an installed plugin, i.e. an entry point of the group
   :data:`ENTRY_POINT_GROUP` (``clfd_bench.methods``) in the plugin package's metadata::
 
@@ -30,10 +30,13 @@ from importlib import metadata
 from pathlib import Path
 
 from clfd_bench.learning.part_config import PART_FIELDS, Rule
+from clfd_bench.methods.agem import AveragedGEM
 from clfd_bench.methods.base import Method
+from clfd_bench.methods.ewc import OnlineEWC
 from clfd_bench.methods.ft import FineTuning
 from clfd_bench.methods.hn import ChunkedHypernetworkMethod, HypernetworkMethod
 from clfd_bench.methods.mas import MemoryAwareSynapses
+from clfd_bench.methods.packnet import PackNet
 from clfd_bench.methods.rep import Replay
 from clfd_bench.methods.sg import SingleNodePerTask
 from clfd_bench.methods.si import SynapticIntelligence
@@ -66,9 +69,13 @@ BUILTIN: dict[str, type[Method]] = {
         MemoryAwareSynapses,
         HypernetworkMethod,
         ChunkedHypernetworkMethod,
+        OnlineEWC,
+        AveragedGEM,
+        PackNet,
     )
 }
-"""The built-in methods by name: the paper's seven in the paper's order (``PAPER_METHODS``)."""
+"""The built-in methods by name: the paper's seven in the paper's order (``PAPER_METHODS``),
+then the ones added here through the plugin interface (online EWC, A-GEM, PackNet)."""
 
 PAPER_METHODS: tuple[str, ...] = ("sg", "ft", "rep", "si", "mas", "hn", "chn")
 """The paper's seven methods (the default method list of leaderboards and the paper grid)."""
