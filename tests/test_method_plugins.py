@@ -234,3 +234,27 @@ def test_l2_forgets_less_than_ft_and_pays_in_plasticity(plugin_dir, tmp_path):
     ft, l2 = errors["ft"], errors["clfd_l2:L2Anchor"]
     assert l2[0] < 0.5 * ft[0], errors  # letter h after e: remembered
     assert l2[1] > 2.0 * ft[1], errors  # letter e: learned worse than by FT
+
+
+def test_leaderboard_config_names_a_methods_own_file(plugin_dir, tmp_path, monkeypatch):
+    """``--config METHOD=PATH`` reaches the grid's training runs (their saved config) and a
+    file for a method not in the grid is refused before any work."""
+    from clfd_bench.harness.validate import InputError
+    from clfd_bench.leaderboard.runner import run_leaderboard
+
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(plugin_dir),
+                                                      os.environ.get("PYTHONPATH", "")]))
+    own = tmp_path / "l2_strong.toml"
+    own.write_text((plugin_dir / "clfd_l2" / "l2.toml").read_text().replace(
+        "[smoke.defaults]\nl2_lambda = 1.0", "[smoke.defaults]\nl2_lambda = 7.5"))
+    method = "clfd_l2:L2Anchor"
+    kwargs = dict(dataset="helloworld", methods=[method], profile="smoke", seeds=[0],
+                  orders=[0], tasks=1, sim=False, workers=1)
+    with pytest.raises(InputError, match="--config ft=...: 'ft' is not in --methods"):
+        run_leaderboard(out=tmp_path / "bad", configs={"ft": str(own)}, **kwargs)
+    assert not (tmp_path / "bad").exists()
+    result = run_leaderboard(out=tmp_path / "board", configs={method: str(own)}, **kwargs)
+    assert not result.failed
+    saved = json.loads((result.specs[0].run_dir(tmp_path / "board") / "results.json")
+                       .read_text())
+    assert saved["config"]["parts"]["position"]["extras"] == {"l2_lambda": 7.5}

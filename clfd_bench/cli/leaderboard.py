@@ -26,6 +26,15 @@ def _names(text: str) -> list[str]:
     return [x if ":" in x else x.lower() for x in names if x]
 
 
+def _config(text: str) -> tuple[str, str]:
+    method, sep, path = text.partition("=")
+    if not sep or not method.strip() or not path.strip():
+        msg = f"expected METHOD=PATH (e.g. l2=my_l2.toml), got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    method = method.strip()
+    return (method if ":" in method else method.lower()), path.strip()
+
+
 def add_executor_arguments(
     p: argparse.ArgumentParser, workers: int = 1, workers_help: str = "default 1"
 ) -> None:
@@ -69,6 +78,7 @@ def _run(args: argparse.Namespace) -> int:
         workers=args.workers,
         address=args.address,
         include=[Path(p) for p in args.include],
+        configs=dict(args.configs),
     )
     print(
         f"[leaderboard] {len(result.specs)} runs: {len(result.trained)} trained now, "
@@ -102,6 +112,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", default="results", help="output directory (default results/)")
+    p.add_argument("--config", dest="configs", type=_config, action="append", default=[],
+                   metavar="METHOD=PATH",
+                   help="a method's hyperparameter file (repeatable; default baselines/ or a "
+                        "plugin's own, docs/methods.md)")
     p.add_argument("--include", action="append", default=[], metavar="RUN_DIR",
                    help="also put this finished run directory in the leaderboard, under its "
                         "method label (repeatable): predictions scored with `clfd-bench "

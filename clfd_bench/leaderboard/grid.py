@@ -39,6 +39,8 @@ class RunSpec:
         sim: execute predictions in simulation during evaluation.
         overrides: ``(key, value)`` pairs passed to training as ``--set key=value``
             (hyperparameter studies); part of the run's name so variants never collide.
+        config_file: the method's hyperparameter file (``--config``; None: its default, see
+            :func:`clfd_bench.methods.method_config_file`), stored absolute.
     """
 
     dataset: str
@@ -50,8 +52,12 @@ class RunSpec:
     tasks: int | None = None
     sim: bool = True
     overrides: tuple[tuple[str, str], ...] = ()
+    config_file: str | None = None
 
     def __post_init__(self) -> None:
+        if self.config_file is not None:
+            resolved = str(Path(self.config_file).expanduser().resolve())
+            object.__setattr__(self, "config_file", resolved)
         pairs = tuple(sorted((str(k), str(v)) for k, v in self.overrides))
         for key, value in pairs:
             if not (_SAFE.fullmatch(key) and _SAFE.fullmatch(value)):
@@ -98,6 +104,8 @@ class RunSpec:
             argv += ["--tasks", str(self.tasks)]
         if not self.sim:
             argv.append("--no-sim")
+        if self.config_file is not None:
+            argv += ["--config", self.config_file]
         for setting in self.settings:
             argv += ["--set", setting]
         return argv
@@ -115,6 +123,7 @@ class RunSpec:
         return resolve_config(
             self.method, self.dataset, self.profile, seed=self.seed, order=self.order,
             node=self.node, tasks=self.tasks, overrides=self.settings,
+            config_file=self.config_file,
         )  # fmt: skip
 
     def num_tasks(self) -> int:
@@ -138,12 +147,15 @@ def make_grid(
     node: str = "t",
     tasks: int | None = None,
     sim: bool = True,
+    configs: dict[str, str] | None = None,
 ) -> list[RunSpec]:
-    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order."""
+    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order.
+    ``configs``: method -> its hyperparameter file (``--config METHOD=PATH``)."""
     if not methods or not seeds or not orders:
         raise ValueError("a grid needs at least one method, one seed and one order")
     specs = [
-        RunSpec(dataset, m, profile, s, o, node, tasks, sim)
+        RunSpec(dataset, m, profile, s, o, node, tasks, sim,
+                config_file=(configs or {}).get(m))
         for m, o, s in product(methods, orders, seeds)
     ]
     folders: dict[str, str] = {}

@@ -49,6 +49,7 @@ def validate_plan(specs: list[RunSpec], out: Path) -> None:
         resolve_config(
             spec.method, spec.dataset, spec.profile, seed=spec.seed, order=spec.order,
             node=spec.node, tasks=spec.tasks, overrides=spec.settings, arg_names=GRID_ARG_NAMES,
+            config_file=spec.config_file,
         )  # fmt: skip
         if not spec.run_dir(out).resolve().is_relative_to(runs_root):  # pragma: no cover
             raise ConfigError(f"run {spec.name!r} would be written outside {out}/runs")
@@ -203,13 +204,15 @@ def run_leaderboard(
     workers: int = 1,
     address: str | None = None,
     include: list[Path] | tuple[Path, ...] = (),
+    configs: dict[str, str] | None = None,
 ) -> LeaderboardResult:
     """Run the grid's missing runs (finished ones are skipped), then write the leaderboard.
 
     Writes into ``out``: ``runs/...`` (one directory per run), ``leaderboard.md``, ``.csv``,
     ``.json`` and the figures (PNG). ``include``: finished run directories from elsewhere put
     in beside the grid's runs (:func:`included_records`), e.g. predictions scored with
-    ``clfd-bench score``; they are read, never written.
+    ``clfd-bench score``; they are read, never written. ``configs``: method -> its
+    hyperparameter file (``--config METHOD=PATH``; a method of ``methods`` each).
     """
     from clfd_bench.harness.validate import InputError, check_count
     from clfd_bench.methods import get_method_class
@@ -220,9 +223,13 @@ def run_leaderboard(
         if not values:
             raise InputError(f"{flag} is empty; a grid needs at least one value")
     check_count("--workers", workers)
+    stray = sorted(set(configs or {}) - set(methods))
+    if stray:
+        raise InputError(f"--config {stray[0]}=...: {stray[0]!r} is not in --methods "
+                         f"({', '.join(methods)}); name the method as in --methods")
     start = time.perf_counter()
     out = Path(out)
-    specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim)
+    specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim, configs)
     # Checked before any work; read, never written.
     extra = included_records([Path(p) for p in include], specs, methods) if include else []
     grid = run_specs(specs, out, executor, workers, address, desc=f"grid {dataset}")
