@@ -44,6 +44,7 @@ from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_lo
 from clfd_bench.learning.part_config import Rule
 from clfd_bench.methods.base import StepContext, TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
+from clfd_bench.methods.memory import DemoMemory
 
 __all__ = ["AveragedGEM", "project_gradient"]
 
@@ -60,7 +61,7 @@ def project_gradient(g: Sequence[Tensor], g_ref: Sequence[Tensor]) -> tuple[list
     return [a - scale * b for a, b in zip(g, g_ref, strict=True)], True
 
 
-class AveragedGEM(ConditionedNodeMethod):
+class AveragedGEM(DemoMemory, ConditionedNodeMethod):
     """A-GEM (see the module docstring). Buffers ``memory_demos_k`` ``[m, T, D]`` and
     ``memory_times_k`` ``[T]`` per learned task; ``projections`` counts the projected steps of
     the current task (for inspection; not part of the state)."""
@@ -77,24 +78,10 @@ class AveragedGEM(ConditionedNodeMethod):
         self._samplers: dict[int, BatchSampler] = {}
         self.projections = 0
 
-    # -- memory ---------------------------------------------------------------------
-    def _store(self, task: int, demos: Tensor, times: Tensor) -> None:
-        self.register_buffer(f"memory_demos_{task}", demos.detach().clone())
-        self.register_buffer(f"memory_times_{task}", times.detach().clone())
-
+    # -- memory (DemoMemory: store, memory, stored_samples) ------------------------
     def prepare_tasks(self, num_tasks: int, state: Mapping[str, Tensor]) -> None:
         super().prepare_tasks(num_tasks, state)
-        for k in range(num_tasks):
-            key = f"memory_demos_{k}"
-            if key in state and not hasattr(self, key):
-                self._store(k, torch.empty_like(state[key]),
-                            torch.empty_like(state[f"memory_times_{k}"]))
         self._samplers.clear()
-
-    def memory(self, task: int) -> TaskData:
-        """The demos of ``task`` kept in the episodic memory."""
-        return TaskData(getattr(self, f"memory_demos_{task}"),
-                        getattr(self, f"memory_times_{task}"))
 
     def on_task_start(self, task: int, data: TaskData) -> None:
         self.projections = 0
@@ -104,11 +91,7 @@ class AveragedGEM(ConditionedNodeMethod):
         n = data.demos.shape[0]
         keep = min(self.cfg.extra("agem_memory"), n)
         idx = torch.randperm(n)[:keep].sort().values  # the global RNG, seeded per task
-        self._store(task, data.demos[idx], data.times)
-
-    def stored_samples(self) -> int:
-        return sum(int(b.shape[0] * b.shape[1]) for name, b in self.named_buffers()
-                   if name.startswith("memory_demos_"))
+        self.store(task, data.demos[idx], data.times)
 
     # -- the projection -------------------------------------------------------------
     def reference_loss(self, ctx: StepContext) -> Tensor:
