@@ -183,16 +183,18 @@ class _Source:
 
 
 def _source(method: str, config_file: str | Path | None = None) -> _Source:
-    from clfd_bench.methods import BUILTIN, get_method_class, method_config_file
+    """The method's hyperparameter file: ``config_file`` if given, else the plugin class's
+    own, else ``baselines/<name>.toml``."""
+    from clfd_bench.methods import get_method_class, own_config_file
 
     cls = get_method_class(method)
-    name = cls.name
-    if config_file is None and not cls.config_file:
-        path = baselines_file(name)
+    if config_file is not None:
+        path = Path(config_file).expanduser().resolve()
     else:
-        path = method_config_file(method, config_file)
-    builtin = method in BUILTIN and config_file is None
-    return _Source(method, name, path, f"baselines/{name}.toml" if builtin else str(path))
+        path = own_config_file(cls)
+    if path is None:
+        return _Source(method, cls.name, baselines_file(cls.name), f"baselines/{cls.name}.toml")
+    return _Source(method, cls.name, path, str(path))
 
 
 def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:

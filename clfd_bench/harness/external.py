@@ -376,16 +376,18 @@ def read_predictions(source: str | os.PathLike[str], ds: Dataset,
 
 
 # ---------------------------------------------------------------------------- scoring
-def _load_dataset(name: str, order: int) -> Dataset:
+def _load_dataset(name: str, order: int, node: str) -> Dataset:
+    """The dataset in ``order``, after the run-level checks every command shares."""
     from clfd_bench.data import DATASETS, load_dataset
+    from clfd_bench.harness.config import ConfigError, check_run_values
 
     if name not in DATASETS:
         raise PredictionsError(f"--dataset {name!r}: unknown dataset; valid: "
                                f"{', '.join(DATASETS)}")
-    num_orders = DATASETS[name].num_orders
-    if isinstance(order, bool) or not isinstance(order, int) or not 0 <= order < num_orders:
-        raise PredictionsError(f"--order {order!r}: {name} has task orders "
-                               f"{list(range(num_orders))}; pass one of them")
+    try:
+        check_run_values({"order": order, "node": node}, name)
+    except ConfigError as exc:
+        raise PredictionsError(str(exc)) from None
     return load_dataset(name, order=order)
 
 
@@ -487,11 +489,9 @@ def score_predictions(
     if not isinstance(method_name, str) or not _LABEL.fullmatch(method_name):
         raise PredictionsError(f"--method-name {method_name!r}: use letters, digits and . _ + - "
                                "(it labels the run's leaderboard row)")
-    if node not in ("t", "i"):
-        raise PredictionsError(f"--node {node!r}: must be 't' (NODE^T) or 'i' (NODE^I)")
     if isinstance(sim_workers, bool) or not isinstance(sim_workers, int) or sim_workers < 1:
         raise PredictionsError(f"--sim-workers {sim_workers!r}: must be an integer >= 1")
-    ds = _load_dataset(dataset, order)
+    ds = _load_dataset(dataset, order, node)
     check_out_dir(out)
     ext = read_predictions(predictions, ds, tasks)  # every check before anything is written
     m = ext.num_tasks

@@ -39,8 +39,8 @@ class RunSpec:
         sim: execute predictions in simulation during evaluation.
         overrides: ``(key, value)`` pairs passed to training as ``--set key=value``
             (hyperparameter studies); part of the run's name so variants never collide.
-        config_file: the method's hyperparameter file (``--config``; None: its default, see
-            :func:`clfd_bench.methods.method_config_file`), stored absolute.
+        config_file: the method's hyperparameter file (``--config``; None: its default, a
+            plugin's own or ``baselines/<name>.toml``), stored absolute.
     """
 
     dataset: str

@@ -23,8 +23,8 @@ from clfd_bench.methods.registry import (
     get_method_class,
     installed_plugins,
     list_methods,
-    method_config_file,
     normalise_method,
+    own_config_file,
 )
 
 __all__ = [
@@ -42,8 +42,8 @@ __all__ = [
     "get_method_class",
     "installed_plugins",
     "list_methods",
-    "method_config_file",
     "normalise_method",
+    "own_config_file",
 ]
 
 METHODS = BUILTIN

@@ -15,7 +15,8 @@ A method is named in one of three ways (``--method`` of every command, ``RunConf
 
 Every class that is not built in is checked by :func:`check_method_class` before use, and an
 error names what is missing. The method's hyperparameters come from a TOML file with the
-same tables as ``baselines/<name>.toml`` (:func:`method_config_file`).
+same tables as ``baselines/<name>.toml`` (``--config``, else :func:`own_config_file`, else
+``baselines/<name>.toml``: :func:`clfd_bench.harness.config.resolve_config`).
 """
 
 from __future__ import annotations
@@ -40,7 +41,6 @@ from clfd_bench.methods.packnet import PackNet
 from clfd_bench.methods.rep import Replay
 from clfd_bench.methods.sg import SingleNodePerTask
 from clfd_bench.methods.si import SynapticIntelligence
-from clfd_bench.resources import resource_path
 
 __all__ = [
     "BUILTIN",
@@ -52,8 +52,8 @@ __all__ = [
     "get_method_class",
     "installed_plugins",
     "list_methods",
-    "method_config_file",
     "normalise_method",
+    "own_config_file",
 ]
 
 ENTRY_POINT_GROUP = "clfd_bench.methods"
@@ -239,17 +239,10 @@ def get_method_class(name: str) -> type[Method]:
     raise UnknownMethodError(f"unknown CL method {name!r}; {_valid_names()}")
 
 
-def method_config_file(name: str, config: str | Path | None = None) -> Path:
-    """The TOML file holding the hyperparameters of method ``name``: ``config`` if given,
-    else the class's ``config_file`` (a plugin's own, relative to its module's folder), else
-    ``baselines/<name>.toml``."""
-    if config is not None:
-        return Path(config).expanduser().resolve()
-    cls = get_method_class(name)
-    own = getattr(cls, "config_file", None)
-    if own:
-        path = Path(own)
-        if not path.is_absolute():
-            path = Path(inspect.getfile(cls)).resolve().parent / path
-        return path
-    return resource_path("baselines", f"{cls.name}.toml")
+def own_config_file(cls: type[Method]) -> Path | None:
+    """A plugin class's own hyperparameter file (its ``config_file``, relative to its
+    module's folder), or None when it names none."""
+    if not cls.config_file:
+        return None
+    path = Path(cls.config_file)
+    return path if path.is_absolute() else Path(inspect.getfile(cls)).resolve().parent / path
