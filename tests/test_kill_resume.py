@@ -19,16 +19,12 @@ import time
 from pathlib import Path
 
 import pytest
+from run_checks import comparable
 
 from clfd_bench.runs import RunDir
 
 TRAIN = ["train", "--method", "hn", "--dataset", "helloworld", "--profile", "smoke",
          "--tasks", "2", "--quiet"]
-# Varies between an uninterrupted and a resumed run: wall times, what was cached, and what is
-# computed from times (TE, and CL_score / CL_stability, which average TE in; the rank by them).
-_TIMING = {"train_time_s", "train_time_s_by_part", "iterations_per_s_by_part", "wall_s",
-           "rollout_wall_s", "evaluated_at", "rollouts_executed", "rollouts_cached", "TE",
-           "CL_score", "CL_stability", "rank"}
 
 
 def _cli(*args: str, env: dict[str, str] | None = None, **kw) -> subprocess.Popen:
@@ -57,17 +53,8 @@ def _kill_when(proc: subprocess.Popen, ready, timeout: float = 600.0) -> None:
     assert proc.returncode == -signal.SIGKILL
 
 
-def _comparable(value):
-    """``value`` without what legitimately differs between runs (timings, cache counts)."""
-    if isinstance(value, dict):
-        return {k: _comparable(v) for k, v in value.items() if k not in _TIMING}
-    if isinstance(value, list):
-        return [_comparable(v) for v in value]
-    return value
-
-
 def _results(run_dir: Path) -> dict:
-    return _comparable(RunDir(run_dir).load_results())
+    return comparable(RunDir(run_dir).load_results())
 
 
 def _temp_files(run_dir: Path) -> list[Path]:
@@ -181,7 +168,7 @@ def test_kill_the_grid_parent_leaves_no_orphans_and_resumes(tmp_path):
     _finish(*GRID, "--out", str(out))
     ref = json.loads((reference / "leaderboard.json").read_text())
     got = json.loads((out / "leaderboard.json").read_text())
-    assert _comparable(got["rows"]) == _comparable(ref["rows"])
+    assert comparable(got["rows"]) == comparable(ref["rows"])
     for run_ref in sorted((reference / "runs").rglob("results.json")):
         run_got = out / run_ref.relative_to(reference)
         assert _results(run_got.parent) == _results(run_ref.parent), run_got

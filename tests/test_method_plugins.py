@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from run_checks import RUN_TIMING, comparable
 
 from clfd_bench.harness.config import ConfigError, RunConfig, resolve_config
 from clfd_bench.methods import (
@@ -168,17 +169,7 @@ def _done(proc: subprocess.Popen) -> str:
     return out
 
 
-_TIMING = {"train_time_s", "train_time_s_by_part", "iterations_per_s_by_part", "wall_s",
-           "rollout_wall_s", "evaluated_at", "rollouts_executed", "rollouts_cached", "TE",
-           "CL_score", "CL_stability", "rank", "provenance"}
-
-
-def _comparable(value):
-    if isinstance(value, dict):
-        return {k: _comparable(v) for k, v in value.items() if k not in _TIMING}
-    if isinstance(value, list):
-        return [_comparable(v) for v in value]
-    return value
+_IGNORED = RUN_TIMING | {"provenance"}  # two run directories: their own paths and times
 
 
 def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
@@ -202,7 +193,7 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     again = json.loads((killed / "results.json").read_text())
     assert ref["complete"] and ref["config"]["method"] == "clfd_l2:L2Anchor"
     assert ref["config"]["parts"]["position"]["extras"] == {"l2_lambda": 1.0}
-    assert _comparable(again) == _comparable(ref)
+    assert comparable(again, _IGNORED) == comparable(ref, _IGNORED)
     # executed in simulation: a success matrix over both tasks, seen tasks filled
     assert len(ref["success"]) == 2 and all(ref["success"][1][j] for j in range(2))
     assert ref["sim_cl_metrics"]["ACC"] is not None

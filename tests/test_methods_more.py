@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from run_checks import comparable
 
 from clfd_bench.harness.config import PartConfig, resolve_config
 from clfd_bench.harness.loop import train_task
@@ -362,8 +363,8 @@ def test_method_state_is_accounted(helloworld_runs):
 # ----------------------------------------------------------------------- kill and resume
 TRAIN = ["train", "--method", "packnet", "--dataset", "helloworld", "--profile", "smoke",
          "--tasks", "3", "--no-sim", "--quiet", "--set", "iterations=150"]
-_TIMING = {"train_time_s", "train_time_s_by_part", "iterations_per_s_by_part", "TE",
-           "CL_score", "CL_stability", "rank", "wall_s"}
+_TIMING = frozenset({"train_time_s", "train_time_s_by_part", "iterations_per_s_by_part", "TE",
+                     "CL_score", "CL_stability", "rank", "wall_s"})
 
 
 def _cli(*args: str) -> subprocess.Popen:
@@ -373,14 +374,6 @@ def _cli(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
-
-
-def _comparable(value):
-    if isinstance(value, dict):
-        return {k: _comparable(v) for k, v in value.items() if k not in _TIMING}
-    if isinstance(value, list):
-        return [_comparable(v) for v in value]
-    return value
 
 
 def _tensors(run_dir: Path) -> dict[str, torch.Tensor]:
@@ -421,8 +414,8 @@ def test_packnet_killed_mid_task_resumes_to_identical_results(tmp_path):
 
     resumed = _cli(*TRAIN, "--out", str(run_dir))
     assert resumed.wait(timeout=300) == 0, resumed.stderr.read()
-    assert _comparable(RunDir(run_dir).load_results()) == _comparable(
-        RunDir(ref_dir).load_results())
+    assert comparable(RunDir(run_dir).load_results(), _TIMING) == comparable(
+        RunDir(ref_dir).load_results(), _TIMING)
     for i in range(3):
         for a, b in zip(RunDir(run_dir).load_predictions(i), RunDir(ref_dir).load_predictions(i),
                         strict=True):

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from run_checks import refused
 
 import clfd_bench
 from clfd_bench.cli.main import main
@@ -145,19 +146,6 @@ def test_rescoring_a_trained_run_reproduces_it(grid, tmp_path):
     assert full["not_provided"] == {"fields": [], "criteria": []}
 
 
-def _refused(capsys, argv: list[str], out: Path, *expected: str) -> str:
-    """Exit 2, one stderr line holding every ``expected`` text, ``out`` not created."""
-    code = main([*argv, "--out", str(out)])
-    err = capsys.readouterr().err
-    lines = err.splitlines()
-    assert code == 2, err
-    assert len(lines) == 1, err
-    for text in expected:
-        assert text in lines[0], (text, lines[0])
-    assert not out.exists()
-    return lines[0]
-
-
 BAD = {
     # name: (task_1's array after task 1, texts the line must hold)
     "missing key": (None, ["after_task_1.npz", "missing key 'task_1'", "'h', 'e'",
@@ -181,27 +169,27 @@ def test_bad_files_get_one_line_and_nothing_is_written(ds, tmp_path, capsys, cas
     if change is not None:
         arrays["task_1"] = change(ds[1].demos)
     np.savez(preds / "after_task_1.npz", **arrays)
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", *expected,
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", *expected,
              "docs/predictions.md")
 
 
 def test_other_bad_inputs_get_one_line(ds, tmp_path, capsys):
     preds = _write(tmp_path / "preds", ds, 3)
     (preds / "after_task_1.npz").unlink()
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "after_task_1.npz", "missing",
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "after_task_1.npz", "missing",
              "--tasks K")
     preds = _write(tmp_path / "preds2", ds, 2, meta={"num_param": [1, 2]})
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "meta.json",
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "meta.json",
              "unknown field 'num_param'", "num_params")
     (preds / "meta.json").write_text(json.dumps({"train_time_s": [1.0, -2.0]}))
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "'train_time_s'", "[1.0, -2.0]")
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "'train_time_s'", "[1.0, -2.0]")
     (preds / "meta.json").unlink()
     np.savez(preds / "after_task_0.npz", task_0=ds[0].demos, times=ds[0].times)
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "unknown key 'times'")
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "unknown key 'times'")
     (preds / "after_task_0.npz").write_bytes(b"not a zip")
-    _refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "after_task_0.npz",
+    refused(capsys, [*SCORE, str(preds)], tmp_path / "out", "after_task_0.npz",
              "not a readable .npz")
-    _refused(capsys, [*SCORE, str(tmp_path / "nothing")], tmp_path / "out", "not found")
+    refused(capsys, [*SCORE, str(tmp_path / "nothing")], tmp_path / "out", "not found")
 
 
 def test_out_holding_another_run_is_refused_and_kept(ds, tmp_path, capsys):

@@ -15,6 +15,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from run_checks import refused
 
 from clfd_bench.cli.main import main
 from clfd_bench.harness import config as config_mod
@@ -40,26 +41,6 @@ from clfd_bench.methods import get_method_class, list_methods
 TRAIN = ["train", "--dataset", "helloworld", "--profile", "smoke", "--no-sim", "--quiet"]
 GRID = ["leaderboard", "--dataset", "helloworld", "--methods", "sg,hn", "--profile", "smoke",
         "--no-sim"]
-
-
-def _refused(capsys, argv: list[str], out: Path, *expected: str) -> str:
-    """Run ``argv`` (with ``--out out``): exit 2, exactly one stderr line holding every
-    ``expected`` text, and ``out`` not created (an existing ``out`` left as it was).
-    Returns the line."""
-    existed = out.exists()
-    try:
-        code = main([*argv, "--out", str(out)])
-    except SystemExit as exc:  # argparse's own errors (a non-integer, a bad choice)
-        code = exc.code
-    err = capsys.readouterr().err
-    lines = err.splitlines()
-    assert code == 2, err
-    assert len(lines) == 1, err
-    for text in expected:
-        assert text in lines[0], (text, lines[0])
-    assert "Traceback" not in err
-    assert out.exists() == existed, f"{out} was created"
-    return lines[0]
 
 
 # --------------------------------------------------------------------- config values
@@ -98,7 +79,7 @@ def _refused(capsys, argv: list[str], out: Path, *expected: str) -> str:
     (["--method", "sg", "--set", "solver=dopri5"], ["--set solver=dopri5", "segments"]),
 ], ids=lambda v: " ".join(v) if isinstance(v, list) and v and v[0].startswith("--") else None)
 def test_bad_config_value(capsys, tmp_path, args, expected):
-    _refused(capsys, [*TRAIN, *args], tmp_path / "out", *expected)
+    refused(capsys, [*TRAIN, *args], tmp_path / "out", *expected)
 
 
 @pytest.mark.parametrize("args,expected", [
@@ -114,7 +95,7 @@ def test_bad_config_value(capsys, tmp_path, args, expected):
     (["--node", "x"], ["--node", "invalid choice"]),
 ], ids=lambda v: " ".join(v) if isinstance(v, list) and v and v[0].startswith("--") else None)
 def test_bad_command_line_value(capsys, tmp_path, args, expected):
-    _refused(capsys, [*TRAIN, "--method", "sg", *args], tmp_path / "out", *expected)
+    refused(capsys, [*TRAIN, "--method", "sg", *args], tmp_path / "out", *expected)
 
 
 @pytest.mark.parametrize("argv,expected", [
@@ -130,7 +111,7 @@ def test_bad_command_line_value(capsys, tmp_path, args, expected):
      ["--set orientation.lr=-1", "orientation.lr="]),
 ])
 def test_bad_names(capsys, tmp_path, argv, expected):
-    _refused(capsys, argv, tmp_path / "out", *expected)
+    refused(capsys, argv, tmp_path / "out", *expected)
 
 
 # ----------------------------------------------------------------------- baselines TOML
@@ -146,7 +127,7 @@ def baselines_copy(tmp_path, monkeypatch):
 def test_malformed_toml_names_file_and_line(capsys, tmp_path, baselines_copy):
     text = baselines_copy.read_text()
     baselines_copy.write_text(text.replace("[smoke.helloworld]", "[smoke.helloworld", 1))
-    line = _refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
+    line = refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
                     str(baselines_copy), "not valid TOML", "at line")
     number = next(i for i, t in enumerate(baselines_copy.read_text().splitlines(), 1)
                   if t.startswith("[smoke.helloworld"))
@@ -159,7 +140,7 @@ def test_bad_value_in_toml_names_file_table_and_line(capsys, tmp_path, baselines
     beta = next(i for i in range(header, len(lines)) if lines[i].startswith("beta ="))
     lines[beta] = "beta = -0.5"
     baselines_copy.write_text("\n".join(lines) + "\n")
-    _refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
+    refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
              f"baselines/hn.toml line {beta + 1} [smoke.helloworld]", "beta", "got -0.5",
              "--set beta=VALUE")
     # a --set of a good value fixes it
@@ -170,7 +151,7 @@ def test_bad_value_in_toml_names_file_table_and_line(capsys, tmp_path, baselines
 def test_wrong_type_in_toml_names_the_file(capsys, tmp_path, baselines_copy):
     text = baselines_copy.read_text()
     baselines_copy.write_text(text.replace('hnet_reg = "batched"', "hnet_reg = 3"))
-    _refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
+    refused(capsys, [*TRAIN, "--method", "hn"], tmp_path / "out",
              "baselines/hn.toml line", "[smoke.defaults]", "hnet_reg must be a string")
 
 
@@ -178,13 +159,13 @@ def test_wrong_type_in_toml_names_the_file(capsys, tmp_path, baselines_copy):
 def test_out_is_a_file(capsys, tmp_path):
     out = tmp_path / "afile"
     out.write_text("not a directory")
-    _refused(capsys, [*TRAIN, "--method", "sg"], out, f"--out {out}", "existing file")
+    refused(capsys, [*TRAIN, "--method", "sg"], out, f"--out {out}", "existing file")
     assert out.read_text() == "not a directory"
 
 
 def test_out_below_a_file(capsys, tmp_path):
     (tmp_path / "afile").write_text("")
-    _refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "afile" / "run",
+    refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "afile" / "run",
              "cannot be created", "is a file")
 
 
@@ -204,7 +185,7 @@ def test_out_read_only_directory_for_real(capsys, tmp_path):
     parent.mkdir()
     parent.chmod(0o555)
     try:
-        _refused(capsys, [*TRAIN, "--method", "sg"], parent / "run", "not writable")
+        refused(capsys, [*TRAIN, "--method", "sg"], parent / "run", "not writable")
         code = main([*TRAIN, "--method", "sg", "--out", str(parent)])
         assert code == 2 and "cannot write" in capsys.readouterr().err
     finally:
@@ -212,7 +193,7 @@ def test_out_read_only_directory_for_real(capsys, tmp_path):
 
 
 def test_out_in_an_unwritable_place(capsys):
-    _refused(capsys, [*TRAIN, "--method", "sg"], Path("/proc/clfd-bench-run"),
+    refused(capsys, [*TRAIN, "--method", "sg"], Path("/proc/clfd-bench-run"),
              "/proc", "not writable")
 
 
@@ -237,13 +218,13 @@ def test_truncated_dataset_file(capsys, tmp_path, data_copy):
     bad = data_copy / "e.npy"
     with bad.open("r+b") as fh:
         fh.truncate(500)
-    _refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "out",
+    refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "out",
              str(bad), "truncated or corrupt", "CLFD_DATA_DIR")
 
 
 def test_missing_dataset_file(capsys, tmp_path, data_copy):
     (data_copy / "w.npy").unlink()
-    _refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "out", "w.npy", "CLFD_DATA_DIR")
+    refused(capsys, [*TRAIN, "--method", "sg"], tmp_path / "out", "w.npy", "CLFD_DATA_DIR")
 
 
 def test_dataset_error_is_one_exception_type(data_copy):
@@ -269,19 +250,19 @@ def test_bad_grid_launches_nothing(capsys, tmp_path, args, expected):
     argv = [a for a in GRID if a not in ("--profile", "smoke")]
     if "--dataset" in args:
         argv = ["leaderboard", "--methods", "sg"]
-    _refused(capsys, [*argv, *args], tmp_path / "grid", *expected)
+    refused(capsys, [*argv, *args], tmp_path / "grid", *expected)
     assert list(tmp_path.iterdir()) == []  # nothing written anywhere, not even outside
 
 
 def test_grid_with_a_corrupt_dataset_launches_nothing(capsys, tmp_path, data_copy):
     (data_copy / "d.npy").write_bytes(b"")
-    _refused(capsys, GRID, tmp_path / "grid", "d.npy", "truncated or corrupt")
+    refused(capsys, GRID, tmp_path / "grid", "d.npy", "truncated or corrupt")
 
 
 def test_grid_out_is_a_file(capsys, tmp_path):
     out = tmp_path / "afile"
     out.write_text("")
-    _refused(capsys, GRID, out, "existing file")
+    refused(capsys, GRID, out, "existing file")
 
 
 def test_valid_plan_passes_and_creates_nothing(tmp_path):
