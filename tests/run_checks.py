@@ -1,8 +1,15 @@
 """Checks several test files share (a helper module, not a test file): a command refused
-with one clear line, and run results compared without what legitimately varies."""
+with one clear line, run results compared without what legitimately varies, and the CLI run
+in its own process group so that a test can kill it for real (SIGKILL)."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -44,3 +51,35 @@ def refused(capsys, argv: list[str], out: Path, *expected: str) -> str:
     assert "Traceback" not in err
     assert out.exists() == existed, f"{out} was created"
     return lines[0]
+
+
+def cli(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen:
+    """``clfd-bench ARGS`` in a subprocess of its own session (so :func:`kill_when` kills its
+    workers too), progress bars off; ``env`` entries are added to this process's environment."""
+    return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args],
+                            env={**os.environ, "CLFD_NO_PROGRESS": "1", **(env or {})},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def finish(proc: subprocess.Popen, timeout: float = 900.0) -> str:
+    """Wait for ``proc`` and assert it exited 0 (its stderr's end is the message if not);
+    returns its stdout."""
+    out, err = proc.communicate(timeout=timeout)
+    assert proc.returncode == 0, err[-3000:]
+    return out
+
+
+def kill_when(proc: subprocess.Popen, ready: Callable[[], bool], timeout: float = 600.0,
+              then: float = 0.0) -> None:
+    """SIGKILL the process group of ``proc`` ``then`` seconds after ``ready()`` first holds
+    (polled every 20 ms); fails if ``proc`` ends before or ``ready()`` never holds."""
+    t0 = time.monotonic()
+    while not ready():
+        assert proc.poll() is None, f"finished before the kill point: {proc.stderr.read()}"
+        assert time.monotonic() - t0 < timeout, "kill point never reached"
+        time.sleep(0.02)
+    time.sleep(then)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL

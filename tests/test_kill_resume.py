@@ -13,44 +13,17 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
-from run_checks import comparable
+from run_checks import cli, comparable, finish, kill_when
 
 from clfd_bench.runs import RunDir
 
 TRAIN = ["train", "--method", "hn", "--dataset", "helloworld", "--profile", "smoke",
          "--tasks", "2", "--quiet"]
-
-
-def _cli(*args: str, env: dict[str, str] | None = None, **kw) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args],
-                            env={**os.environ, "CLFD_NO_PROGRESS": "1", **(env or {})},
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, **kw)
-
-
-def _finish(*args: str) -> subprocess.CompletedProcess:
-    proc = _cli(*args)
-    out, err = proc.communicate(timeout=900)
-    assert proc.returncode == 0, err[-2000:]
-    return subprocess.CompletedProcess(args, proc.returncode, out, err)
-
-
-def _kill_when(proc: subprocess.Popen, ready, timeout: float = 600.0) -> None:
-    """SIGKILLs the process group of ``proc`` as soon as ``ready()`` is true."""
-    t0 = time.monotonic()
-    while not ready():
-        assert proc.poll() is None, f"finished before the kill point: {proc.stderr.read()}"
-        assert time.monotonic() - t0 < timeout, "kill point never reached"
-        time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
 
 
 def _results(run_dir: Path) -> dict:
@@ -65,7 +38,7 @@ def _temp_files(run_dir: Path) -> list[Path]:
 def reference(tmp_path_factory) -> dict:
     """An uninterrupted run (2 tasks, executed in simulation)."""
     out = tmp_path_factory.mktemp("reference")
-    _finish(*TRAIN, "--out", str(out))
+    finish(cli(*TRAIN, "--out", str(out)))
     results = _results(out)
     assert results["tasks_done"] == 2 and results["sim"]["evaluated_tasks"] == 2
     return results
@@ -73,11 +46,11 @@ def reference(tmp_path_factory) -> dict:
 
 def test_kill_while_training_then_resume(reference, tmp_path):
     run = RunDir(tmp_path / "run")
-    proc = _cli(*TRAIN, "--out", str(run.path))
-    _kill_when(proc, lambda: run.predictions_path(0).is_file())
+    proc = cli(*TRAIN, "--out", str(run.path))
+    kill_when(proc, lambda: run.predictions_path(0).is_file())
     status = run.status(2, sim=True)
     assert status.state == "partial", status
-    _finish(*TRAIN, "--out", str(run.path))
+    finish(cli(*TRAIN, "--out", str(run.path)))
     assert _results(run.path) == reference
     assert not _temp_files(run.path)
 
@@ -87,13 +60,13 @@ def test_kill_while_training_then_resume(reference, tmp_path):
 def test_kill_in_the_middle_of_a_write_then_resume(reference, tmp_path, file_name, nth):
     """Killed with the new file complete in its temporary copy and the old one in place."""
     run = RunDir(tmp_path / "run")
-    proc = _cli(*TRAIN, "--out", str(run.path),
+    proc = cli(*TRAIN, "--out", str(run.path),
                 env={"CLFD_KILL_BEFORE_REPLACE": f"{file_name}:{nth}"})
     proc.communicate(timeout=900)
     assert proc.returncode == -signal.SIGKILL
     assert _temp_files(run.path), "the kill should leave the temporary file"
     assert run.status(2, sim=True).state == "partial"
-    _finish(*TRAIN, "--out", str(run.path))
+    finish(cli(*TRAIN, "--out", str(run.path)))
     assert _results(run.path) == reference
     assert not _temp_files(run.path)  # the next owner of the run removed them
 
@@ -102,7 +75,7 @@ def test_kill_while_executing_the_last_task_then_resume(reference, tmp_path):
     """Killed after the last task's training files are written (``complete`` is true), while
     its predictions execute: the run is not done, and resuming executes them."""
     run = RunDir(tmp_path / "run")
-    proc = _cli(*TRAIN, "--out", str(run.path))
+    proc = cli(*TRAIN, "--out", str(run.path))
 
     def executing_last() -> bool:
         try:
@@ -111,20 +84,20 @@ def test_kill_while_executing_the_last_task_then_resume(reference, tmp_path):
             return False
         return doc.get("tasks_done") == 2
 
-    _kill_when(proc, executing_last)
+    kill_when(proc, executing_last)
     doc = run.load_results()
     assert doc["complete"] and doc["tasks_done"] == 2
     assert "success" not in doc  # the smaller matrix of task 0 was dropped, not kept
     status = run.status(2, sim=True)
     assert status.state == "partial" and "executed" in status.reason
-    _finish(*TRAIN, "--out", str(run.path))
+    finish(cli(*TRAIN, "--out", str(run.path)))
     assert _results(run.path) == reference
 
 
 def test_a_second_trainer_of_the_same_run_is_refused(tmp_path):
     run = RunDir(tmp_path / "run")
     with run.lock("test holder"):
-        proc = _cli(*TRAIN, "--no-sim", "--out", str(run.path))
+        proc = cli(*TRAIN, "--no-sim", "--out", str(run.path))
         out, err = proc.communicate(timeout=300)
     assert proc.returncode == 2
     lines = err.strip().splitlines()
@@ -154,18 +127,18 @@ GRID = ["leaderboard", "--dataset", "helloworld", "--methods", "sg,hn", "--profi
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal: Linux")
 def test_kill_the_grid_parent_leaves_no_orphans_and_resumes(tmp_path):
     reference = tmp_path / "reference"
-    _finish(*GRID, "--out", str(reference))
+    finish(cli(*GRID, "--out", str(reference)))
     out = tmp_path / "grid"
-    proc = _cli(*GRID, "--out", str(out))
+    proc = cli(*GRID, "--out", str(out))
     runs = out / "runs" / "helloworld"
-    _kill_when(proc, lambda: any(runs.glob("*/*/train.log")))  # children are training
+    kill_when(proc, lambda: any(runs.glob("*/*/train.log")))  # children are training
     # Only the grid's own process was killed (not its children's groups): the children
     # must end by themselves.
     deadline = time.monotonic() + 20
     while _processes_mentioning(str(out)) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not _processes_mentioning(str(out)), "a killed grid left training processes"
-    _finish(*GRID, "--out", str(out))
+    finish(cli(*GRID, "--out", str(out)))
     ref = json.loads((reference / "leaderboard.json").read_text())
     got = json.loads((out / "leaderboard.json").read_text())
     assert comparable(got["rows"]) == comparable(ref["rows"])

@@ -9,15 +9,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import pytest
-from run_checks import RUN_TIMING, comparable
+from run_checks import RUN_TIMING, cli, comparable, finish, kill_when
 
 from clfd_bench.harness.config import ConfigError, RunConfig, resolve_config
 from clfd_bench.methods import (
@@ -155,18 +152,10 @@ def test_own_hyperparameters_resolve_check_and_round_trip(plugin_dir, tmp_path):
 # -- the whole life of a plugin run ------------------------------------------------------
 
 
-def _cli(args: list[str], pythonpath: Path) -> subprocess.Popen:
-    env = {**os.environ, "CLFD_NO_PROGRESS": "1",
-           "PYTHONPATH": os.pathsep.join([str(pythonpath), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-
-
-def _done(proc: subprocess.Popen) -> str:
-    out, err = proc.communicate(timeout=900)
-    assert proc.returncode == 0, err[-3000:]
-    return out
+def _cli(args: list[str], pythonpath: Path):
+    """The CLI with ``pythonpath`` in front of ``PYTHONPATH`` (the plugin is found there)."""
+    return cli(*args, env={"PYTHONPATH": os.pathsep.join(
+        [str(pythonpath), os.environ.get("PYTHONPATH", "")])})
 
 
 _IGNORED = RUN_TIMING | {"provenance"}  # two run directories: their own paths and times
@@ -177,18 +166,11 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     shutil.copytree(EXAMPLE, root, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     train = ["train", "--method", "clfd_l2:L2Anchor", "--dataset", "helloworld",
              "--profile", "smoke", "--tasks", "2", "--quiet"]
-    _done(_cli([*train, "--out", str(tmp_path / "ref")], root))
+    finish(_cli([*train, "--out", str(tmp_path / "ref")], root))
     killed = tmp_path / "killed"
     proc = _cli([*train, "--out", str(killed)], root)
-    t0 = time.monotonic()
-    while not (killed / "predictions" / "after_task_0.npz").exists():
-        assert proc.poll() is None, proc.stderr.read()
-        assert time.monotonic() - t0 < 600
-        time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
-    _done(_cli([*train, "--out", str(killed)], root))
+    kill_when(proc, (killed / "predictions" / "after_task_0.npz").exists)
+    finish(_cli([*train, "--out", str(killed)], root))
     ref = json.loads((tmp_path / "ref" / "results.json").read_text())
     again = json.loads((killed / "results.json").read_text())
     assert ref["complete"] and ref["config"]["method"] == "clfd_l2:L2Anchor"
@@ -199,7 +181,7 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     assert ref["sim_cl_metrics"]["ACC"] is not None
 
     board = tmp_path / "board"
-    out = _done(_cli(["leaderboard", "--dataset", "helloworld", "--methods",
+    out = finish(_cli(["leaderboard", "--dataset", "helloworld", "--methods",
                       "ft,clfd_l2:L2Anchor", "--profile", "smoke", "--tasks", "2",
                       "--workers", "1", "--out", str(board)], root))
     table = json.loads((board / "leaderboard.json").read_text())

@@ -21,16 +21,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
-from run_checks import comparable
+from run_checks import cli, comparable, finish, kill_when
 
 from clfd_bench.harness.config import PartConfig, resolve_config
 from clfd_bench.harness.loop import train_task
@@ -367,13 +363,11 @@ _TIMING = frozenset({"train_time_s", "train_time_s_by_part", "iterations_per_s_b
                      "CL_score", "CL_stability", "rank", "wall_s"})
 
 
-def _cli(*args: str) -> subprocess.Popen:
-    env = {**os.environ, "CLFD_NO_PROGRESS": "1"}
-    if "CLFD_DATA_DIR" not in env and SHARED.is_dir():
-        env["CLFD_DATA_DIR"] = str(SHARED)
-    return subprocess.Popen([sys.executable, "-m", "clfd_bench.cli.main", *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+def _cli(*args: str):
+    """The CLI, with the shared datasets when ``CLFD_DATA_DIR`` is not set."""
+    if "CLFD_DATA_DIR" not in os.environ and SHARED.is_dir():
+        return cli(*args, env={"CLFD_DATA_DIR": str(SHARED)})
+    return cli(*args)
 
 
 def _tensors(run_dir: Path) -> dict[str, torch.Tensor]:
@@ -391,29 +385,23 @@ def test_packnet_killed_mid_task_resumes_to_identical_results(tmp_path):
 
     ref_dir, run_dir = tmp_path / "reference", tmp_path / "killed"
     reference = _cli(*TRAIN, "--out", str(ref_dir))
-    assert reference.wait(timeout=300) == 0, reference.stderr.read()
+    finish(reference, timeout=300)
 
     proc = _cli(*TRAIN, "--out", str(run_dir))
     run = RunDir(run_dir)
-    t0 = time.monotonic()
-    while True:
-        assert proc.poll() is None, f"finished before the kill: {proc.stderr.read()}"
-        assert time.monotonic() - t0 < 300, "task 0 never finished"
+
+    def task_0_done() -> bool:
         try:
-            done = (run.read_results() or {}).get("tasks_done")
-        except ValueError:
-            done = None
-        if done == 1:
-            break
-        time.sleep(0.02)
-    time.sleep(0.2)  # into task 1's iterations (1-2 s of them on a shared 2-core machine)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
+            return (run.read_results() or {}).get("tasks_done") == 1
+        except ValueError:  # results.json being replaced
+            return False
+
+    # 0.2 s into task 1's iterations (1-2 s of them on a shared 2-core machine)
+    kill_when(proc, task_0_done, timeout=300, then=0.2)
     assert json.loads((run_dir / "results.json").read_text())["tasks_done"] < 3
 
     resumed = _cli(*TRAIN, "--out", str(run_dir))
-    assert resumed.wait(timeout=300) == 0, resumed.stderr.read()
+    finish(resumed, timeout=300)
     assert comparable(RunDir(run_dir).load_results(), _TIMING) == comparable(
         RunDir(ref_dir).load_results(), _TIMING)
     for i in range(3):
