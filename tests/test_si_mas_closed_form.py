@@ -68,7 +68,7 @@ def _build(cls, spec: NodeSpec, cfg: PartConfig, theta0: np.ndarray, monkeypatch
     def init(shapes, generator=None, dtype=torch.float32):
         return [p.clone() for p in split_flat(torch.from_numpy(theta0.copy()), shapes)]
 
-    monkeypatch.setattr("clfd_bench.methods.conditioned.init_mlp_weights", init)
+    monkeypatch.setattr("clfd_bench.learning.node.init_mlp_weights", init)
     method = cls(spec, cfg)
     assert all(w.dtype == torch.float64 for w in method.weights)
     return method

@@ -6,6 +6,8 @@ import argparse
 import os
 import sys
 
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+
 __all__ = ["register"]
 
 ALL_METHODS = "sg,ft,rep,si,mas,hn,chn"
@@ -107,8 +109,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
     p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--orders", type=_ints, default=[0], help="task orders (default 0)")
-    p.add_argument("--node", choices=("t", "i"), default="t",
-                   help="NODE with time input (t) or without (i)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", default="results", help="output directory (default results/)")

@@ -19,6 +19,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+
 __all__ = ["register"]
 
 
@@ -72,8 +74,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="dataset: lasa, helloworld, robotasks, robotasks9")
     p.add_argument("--order", type=int, default=0,
                    help="the task order the predictions follow: 0, 1 or 2 (default 0)")
-    p.add_argument("--node", choices=("t", "i"), default="t",
-                   help="the NODE variant the run is compared with (recorded; default t)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t",
+                   help="the NODE variant the run is compared with (recorded): " + NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, metavar="K",
                    help="score only the first K learned tasks (default: all given)")
     p.add_argument("--out", required=True, help="the run directory to write")

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
 
@@ -74,8 +75,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seeds", type=_ints, default=[0, 1, 2],
                    help="comma-separated seeds (default 0,1,2)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
-    p.add_argument("--node", choices=("t", "i"), default="t",
-                   help="NODE with time input (t, default) or without (i)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figures)")

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from clfd_bench.cli.leaderboard import _names, add_executor_arguments
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
 
@@ -88,8 +89,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--range", action="append", default=[], metavar="[METHOD.]KEY=LOW,HIGH",
                    help="replace a sampling range, e.g. beta=1e-3,1e-2 (every method that "
                    "samples beta) or hn.beta=0.01,1 (one method; also adds a key); repeatable")
-    p.add_argument("--node", choices=("t", "i"), default="t",
-                   help="NODE with time input (t, default, as in the paper) or without (i)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true",
                    help="skip execution in simulation (the study's scores are trajectory-based; "

@@ -21,6 +21,8 @@ import argparse
 import json
 import sys
 
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+
 __all__ = ["register"]
 
 
@@ -46,8 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(default: fast)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--order", type=int, default=0, help="task order 0, 1 or 2 (default 0)")
-    p.add_argument("--node", choices=("t", "i"), default="t",
-                   help="t: NODE^T (time input, default), i: NODE^I")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, metavar="K",
                    help="stop after the first K tasks of the order")
     p.add_argument("--out", help="run directory (required unless --show-config)")

@@ -2,9 +2,13 @@
 
 A baselines file holds, per profile (``paper``, ``fast``, ``smoke``), a ``defaults`` table
 and one table per dataset; pose datasets (RoboTasks) have ``position`` and ``orientation``
-sub-tables for their two models. Values resolve as
+sub-tables for their two models. Runs of the stable NODE (``--node s``) also read
+``baselines/snode.toml`` (its ``[profile]`` table, shared by every method) and the method's
+optional ``[profile.snode]`` table. Values resolve as
 
-    profile.defaults  <-  profile.<dataset>  <-  profile.<dataset>.<part>  <-  --set overrides
+    profile.defaults  <-  profile.<dataset>  <-  profile.<dataset>.<part>
+        <-  baselines/snode.toml [profile]  <-  profile.snode   (both: --node s only)
+        <-  --set overrides
 
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
 of :class:`PartConfig` that the method uses; anything else (a typo, ``beta`` for SG) raises
@@ -40,10 +44,12 @@ from clfd_bench.learning.part_config import (
     PART_CONSTRAINTS,
     PART_FIELDS,
     PART_RULES,
+    SNODE_KEYS,
     ConfigError,
     PartConfig,
     Rule,
 )
+from clfd_bench.node_variants import NODE_VARIANTS
 from clfd_bench.resources import resource_path
 
 __all__ = [
@@ -65,6 +71,8 @@ DATASET_TABLES = ("lasa", "helloworld", "robotasks", "robotasks9")
 POSE_DATASETS = ("robotasks", "robotasks9")
 PARTS_POSE = ("position", "orientation")
 _DOC_KEYS = ("notes",)
+SNODE_TABLE = "snode"
+"""The table of a method's profile that applies to stable-NODE runs (``--node s``) only."""
 
 
 @dataclass(frozen=True)
@@ -73,7 +81,8 @@ class RunConfig:
 
     Attributes:
         method: registered CL method name. dataset: dataset name. profile: baselines profile.
-        order: task order (0, 1, 2). seed: random seed. node: ``t`` (NODE^T) or ``i``.
+        order: task order (0, 1, 2). seed: random seed. node: ``t`` (NODE^T), ``i``
+            (NODE^I) or ``s`` (sNODE), :data:`~clfd_bench.node_variants.NODE_VARIANTS`.
         tasks: number of tasks learned (the first ``tasks`` of the order).
         parts: ``(("position", cfg),)`` or, for poses, position and orientation configs.
         overrides: the ``--set`` overrides that were applied (for the record).
@@ -171,6 +180,10 @@ def baselines_file(method: str) -> Path:
     return resource_path("baselines", f"{method}.toml")
 
 
+SNODE_FILE = "snode.toml"
+"""``baselines/snode.toml``: the stable NODE's settings per profile, for every method."""
+
+
 @dataclass(frozen=True)
 class _Source:
     """Where a method's hyperparameters are read from. ``label`` is how messages name the
@@ -215,6 +228,18 @@ def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:
         raise ConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
+def _snode_profile(profile: str) -> tuple[dict[str, Any], _Source]:
+    """The ``[profile]`` table of ``baselines/snode.toml`` (only stable-NODE keys and the
+    solver/network keys it changes) and its source, for error messages."""
+    src = _Source("snode", "snode", baselines_file("snode"), f"baselines/{SNODE_FILE}")
+    path, doc = _read_baselines(src)
+    table = doc.get(profile)
+    if not isinstance(table, dict):
+        raise ConfigError(f"{path} has no [{profile}] table; it needs one per profile "
+                          f"({', '.join(PROFILES)})")
+    return table, src
+
+
 def load_profile_table(method: str, profile: str,
                        config_file: str | Path | None = None) -> dict[str, Any]:
     """The raw ``[profile]`` table of the method's hyperparameter file (validated
@@ -241,7 +266,7 @@ def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
         raise ConfigError(f"{path} has no [{profile}] profile; it has: "
                           f"{', '.join(p for p in PROFILES if p in doc)}")
     table = doc[profile]
-    valid = {"defaults", *DATASET_TABLES, *_DOC_KEYS}
+    valid = {"defaults", SNODE_TABLE, *DATASET_TABLES, *_DOC_KEYS}
     for key in table:
         if key not in valid:
             raise ConfigError(
@@ -284,7 +309,8 @@ RUN_RULES: dict[str, Rule] = {
     "profile": Rule("str", choices=PROFILES),
     "order": Rule("int", lo=0, what="task order; below the dataset's number of orders"),
     "seed": Rule("int", lo=0, hi=2**32 - 1, what="random seed"),
-    "node": Rule("str", choices=("t", "i"), what="t: NODE^T, i: NODE^I"),
+    "node": Rule("str", choices=tuple(NODE_VARIANTS),
+                 what=", ".join(f"{k}: {v}" for k, v in NODE_VARIANTS.items())),
     "tasks": Rule("int", lo=1, optional=True, what="at most the dataset's number of tasks"),
 }
 """The type and valid range of every scalar :class:`RunConfig` field (``parts`` are checked
@@ -340,6 +366,7 @@ class _Origin:
 
     kind: str  # "set" | "toml" | "default"
     text: str  # the --set text, or the table name below the profile ("fast.lasa")
+    source: _Source | None = None  # the file, when not the method's (baselines/snode.toml)
 
 
 def _toml_repr(value: Any) -> str:
@@ -370,6 +397,7 @@ def _toml_line(path: Path, table: str, key: str) -> int | None:
 def _where(src: _Source, key: str, origin: _Origin) -> str:
     if origin.kind == "set":
         return f"--set {origin.text}"
+    src = origin.source or src
     line = _toml_line(src.path, origin.text, key)
     return f"{src.label}{f' line {line}' if line else ''} [{origin.text}]"
 
@@ -392,7 +420,7 @@ def _located(src: _Source, profile: str, key: str, origin: _Origin, problem: str
         return ConfigError(f"--set {origin.text}: {problem}{hint}")
     if origin.kind == "toml":
         return ConfigError(f"{_where(src, key, origin)}: {problem}; fix it in "
-                           f"{src.path}, or override it with "
+                           f"{(origin.source or src).path}, or override it with "
                            f"--set {prefix}{key}=VALUE")
     return ConfigError(
         f"{src.label} [{origin.text}] does not set {key}, which method "
@@ -492,8 +520,16 @@ def resolve_config(
         layers = [("defaults", table.get("defaults", {})), (source, table[source])]
         if is_pose:
             layers.append((f"{source}.{part}", table[source].get(part, {})))
+        sources = {}
+        if node == "s":
+            shared, shared_src = _snode_profile(profile)
+            layers.append((SNODE_FILE, shared))
+            sources[SNODE_FILE] = shared_src
+            layers.append((SNODE_TABLE, table.get(SNODE_TABLE, {})))
         for layer_name, layer in layers:
-            where = f"{src.label} [{profile}.{layer_name}]"
+            layer_src = sources.get(layer_name)
+            table_text = profile if layer_src else f"{profile}.{layer_name}"
+            where = f"{(layer_src or src).label} [{table_text}]"
             for key, value in layer.items():
                 if key in PARTS_POSE and isinstance(value, dict):
                     if not is_pose:
@@ -511,7 +547,7 @@ def resolve_config(
                         f"valid keys: {', '.join(known)}"
                     )
                 merged[key] = value
-                origin[key] = _Origin("toml", f"{profile}.{layer_name}")
+                origin[key] = _Origin("toml", table_text, layer_src)
         from_profile = dict(merged)
         for text, o_part, key, value in parsed:
             if o_part is None or o_part == part:
@@ -521,6 +557,10 @@ def resolve_config(
         values: dict[str, Any] = {}
         extras: dict[str, Any] = {}
         for key, value in merged.items():
+            if key in SNODE_KEYS and node != "s":
+                raise ConfigError(
+                    f"{_where(src, key, origin[key])}: {key!r} sets the stable NODE, which "
+                    f"this run (--node {node}) does not train; use --node s, or drop it")
             if key not in allowed and key not in own_rules:
                 own = sorted(method_keys | set(own_rules))
                 raise ConfigError(
@@ -539,7 +579,7 @@ def resolve_config(
         if part == "position" and values.get("tangent_scale", 1.0) != 1.0:
             raise _position_tangent_scale(src, profile, dataset, source, is_pose,
                                           values["tangent_scale"], origin["tangent_scale"])
-        table_name = f"{profile}.{layers[-1][0]}"
+        table_name = f"{profile}.{[n for n, _ in layers if n not in (SNODE_TABLE, SNODE_FILE)][-1]}"
         for key in sorted(allowed - set(values)):  # keys the method uses, left at default
             default = PART_FIELDS[key].default
             if default is dataclasses.MISSING:

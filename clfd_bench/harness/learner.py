@@ -1,11 +1,12 @@
 """Learners: what turns a :class:`~clfd_bench.data.Task` into NODE training data and back.
 
 * :class:`PartLearner` is one learned model: ``position`` (planar points or 3-D positions,
-  normalised per task with the task's mean/std) or ``orientation`` (unit quaternions mapped
-  to tangent vectors ``Log(conj(q_g) * q)``, see :mod:`clfd_bench.learning.tangent`, times
-  the config's ``tangent_scale``). Its time axis is the task's ``times`` or, with
-  ``time_axis = "first_demo"``, the first demo's own time stamps; prediction times are given
-  on the data's axis and mapped onto the NODE's.
+  normalised per task with the task's mean/std; a stable NODE's with the task's goal in
+  place of the mean, so that the goal is the origin its field converges to) or
+  ``orientation`` (unit quaternions mapped to tangent vectors ``Log(conj(q_g) * q)``, see
+  :mod:`clfd_bench.learning.tangent`, times the config's ``tangent_scale``). Its time axis
+  is the task's ``times`` or, with ``time_axis = "first_demo"``, the first demo's own time
+  stamps; prediction times are given on the data's axis and mapped onto the NODE's.
 * :class:`Learner` holds the parts of a run (RoboTasks: one position and one orientation
   model trained with the same CL method, as in the paper) and predicts full trajectories in
   data units: ``[N, T, 2]`` planar, ``[N, T, 7]`` poses (metres, unit quaternions w, x, y, z).
@@ -32,6 +33,7 @@ from clfd_bench.harness.loop import (
 from clfd_bench.learning.node import NodeSpec
 from clfd_bench.learning.normalize import Normalizer
 from clfd_bench.learning.odeint import integrate
+from clfd_bench.learning.stable import StableSpec
 from clfd_bench.learning.tangent import quat_exp_relative, quat_log_relative
 from clfd_bench.methods import Method, TaskData, get_method_class
 
@@ -109,10 +111,25 @@ class PartLearner:
             )
         return factor
 
+    @property
+    def stable(self) -> bool:
+        """Whether this part learns a stable NODE (its goal must be the origin)."""
+        return isinstance(self.method.node_spec, StableSpec)
+
+    def _goal_raw(self, task: Task) -> np.ndarray:
+        """The task's goal in this part's space before normalisation: the common end point
+        of the positions; for orientation the tangent vector of the goal itself, 0."""
+        if self.kind == "position":
+            return np.asarray(task.goal[: task.positions.shape[-1]], dtype=np.float64)
+        return np.zeros(3)
+
     def task_data(self, task: Task) -> tuple[TaskData, Normalizer]:
-        """Training data of ``task`` and the normaliser fitted on it."""
+        """Training data of ``task`` and the normaliser fitted on it (a stable NODE's is
+        centred on the goal instead of the mean)."""
         raw = self._raw(task)
         norm = Normalizer.fit(raw) if self.cfg.normalize else Normalizer.identity(raw.shape[-1])
+        if self.stable:
+            norm = Normalizer(mean=self._goal_raw(task), std=norm.std)
         demos = torch.as_tensor(norm.apply(raw), dtype=torch.float32)
         times = torch.tensor(self.train_times(task), dtype=torch.float32)
         return TaskData(demos, times), norm
@@ -247,8 +264,15 @@ class Learner:
         parts = []
         for kind, cfg in config.parts:
             part_dim = (2 if dim == 2 else 3)
-            spec = NodeSpec(dim=part_dim, hidden=cfg.node_hidden, time_input=config.node == "t",
-                            activation=cfg.activation)
+            spec: NodeSpec | StableSpec
+            if config.node == "s":
+                spec = StableSpec(dim=part_dim, hidden=cfg.node_hidden,
+                                  lyap_hidden=cfg.lyap_hidden, clock=cfg.snode_clock,
+                                  activation=cfg.activation, alpha=cfg.snode_alpha,
+                                  eps=cfg.snode_eps, rehu_d=cfg.snode_rehu)
+            else:
+                spec = NodeSpec(dim=part_dim, hidden=cfg.node_hidden,
+                                time_input=config.node == "t", activation=cfg.activation)
             parts.append(PartLearner(kind, method_cls(spec, cfg), cfg))
         if dim == 7 and set(p.kind for p in parts) != {"position", "orientation"}:
             raise ValueError("pose data needs a position and an orientation part")

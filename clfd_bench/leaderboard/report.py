@@ -50,6 +50,7 @@ from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
 from clfd_bench.metrics.paper_numbers import DATASET_LABELS
+from clfd_bench.node_variants import node_label
 
 __all__ = ["COLUMNS", "NOT_PROVIDED", "TIE", "PaperRanking", "paper_ranking", "rank",
            "write_tables"]
@@ -124,6 +125,8 @@ def _paper_table(meta: dict[str, Any]) -> tuple[tuple[str, str] | None, str]:
     dataset, node = meta["dataset"], meta.get("node", "t")
     if dataset not in DATASET_LABELS:
         return None, f"the paper has no CL table for {dataset}"
+    if node == "s":
+        return None, "the paper has no sNODE tables (the stable NODE is its follow-up's)"
     if dataset == "robotasks":
         if node != "t":
             return None, (f"the paper's RoboTasks tables are NODE^T only (this grid: "
@@ -268,7 +271,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
         f"# Leaderboard: {meta['dataset']} ({meta['profile']} profile)",
         "",
         f"Grid: methods {', '.join(meta['methods'])}; seeds {meta['seeds']}; orders "
-        f"{meta['orders']}; NODE^{meta['node'].upper()}"
+        f"{meta['orders']}; {node_label(meta['node'])}"
         + (f"; first {meta['tasks']} tasks" if meta.get("tasks") else "")
         + ("; with simulated execution" if meta.get("sim") else "; no simulation")
         + ".",

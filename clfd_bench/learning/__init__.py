@@ -1,6 +1,8 @@
 """Task learners: NODE vector fields, ODE integration, hypernetworks, tangent-space maps.
 
 * :mod:`~clfd_bench.learning.node` -- :class:`NodeSpec`, :class:`VectorField` (NODE^T/NODE^I).
+* :mod:`~clfd_bench.learning.stable` -- :class:`StableSpec`, :class:`StableField` (sNODE).
+* :mod:`~clfd_bench.learning.fields` -- the interface both kinds share (``FieldSpec``).
 * :mod:`~clfd_bench.learning.odeint` -- :func:`integrate` (torchdiffeq adaptive or fixed RK4).
 * :mod:`~clfd_bench.learning.objective` -- the training loss of a batch, batch and solver specs.
 * :mod:`~clfd_bench.learning.rk4_fused` -- RK4 through an MLP with a hand-written backward.
@@ -17,6 +19,7 @@ from clfd_bench.learning.node import NodeSpec, VectorField
 from clfd_bench.learning.normalize import Normalizer
 from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_loss
 from clfd_bench.learning.odeint import SolverSpec, integrate
+from clfd_bench.learning.stable import StableField, StableSpec
 from clfd_bench.learning.tangent import quat_exp_relative, quat_log_relative
 
 __all__ = [
@@ -27,6 +30,8 @@ __all__ = [
     "NodeSpec",
     "Normalizer",
     "SolverSpec",
+    "StableField",
+    "StableSpec",
     "VectorField",
     "adam_lookahead",
     "batch_spec",

@@ -30,32 +30,23 @@ from clfd_bench.learning.mlp import (
     split_flat,
 )
 
-__all__ = ["ChunkedHyperNetwork", "HyperNetwork", "check_mlp_shapes"]
+__all__ = ["ChunkedHyperNetwork", "HyperNetwork", "check_target_shapes"]
 
 
-def check_mlp_shapes(shapes: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
-    """Validate that ``shapes`` describe a fully connected net ``[W0, b0, W1, b1, ...]``.
+def check_target_shapes(shapes: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
+    """Validate the shapes of the tensors a hypernetwork generates (any target network: the
+    NODE's MLP, the stable NODE's MLP and ICNN; the target's own field checks its layout).
 
     Raises:
-        ValueError: naming the first tensor that does not fit.
+        ValueError: no shapes, or naming the first shape with a dimension below 1.
     """
     shapes = [tuple(int(v) for v in s) for s in shapes]
-    if not shapes or len(shapes) % 2:
-        raise ValueError(
-            f"target shapes must alternate weight [out, in] and bias [out], got {shapes}"
-        )
-    prev_out = None
-    for i in range(0, len(shapes), 2):
-        w, b = shapes[i], shapes[i + 1]
-        if len(w) != 2 or len(b) != 1 or b[0] != w[0]:
-            raise ValueError(
-                f"target tensors {i} and {i + 1} are {w} and {b}; expected [out, in] and [out]"
-            )
-        if prev_out is not None and w[1] != prev_out:
-            raise ValueError(
-                f"target layer {i // 2} takes {w[1]} inputs but the previous layer gives {prev_out}"
-            )
-        prev_out = w[0]
+    if not shapes:
+        raise ValueError("a hypernetwork needs at least one target tensor shape")
+    for i, shape in enumerate(shapes):
+        if not shape or min(shape) < 1:
+            raise ValueError(f"target tensor {i} has shape {shape}; every dimension must be "
+                             ">= 1 (at least one dimension)")
     return shapes
 
 
@@ -63,7 +54,8 @@ class HyperNetwork(nn.Module):
     """Full hypernetwork: one forward pass produces all ``P`` target weights.
 
     Args:
-        target_shapes: shapes ``[W0, b0, ...]`` of the target network (checked).
+        target_shapes: shapes of the target network's tensors, in the order it takes them
+            (checked: :func:`check_target_shapes`).
         emb_dim: task embedding size.
         hidden: hidden layer widths (the paper: ``(200, 200, 200)``).
         activation: hidden activation (the paper: ReLU).
@@ -79,7 +71,7 @@ class HyperNetwork(nn.Module):
         generator: torch.Generator | None = None,
     ):
         super().__init__()
-        self.target_shapes = check_mlp_shapes(target_shapes)
+        self.target_shapes = check_target_shapes(target_shapes)
         self.num_outputs = num_weights(self.target_shapes)
         self.emb_dim = int(emb_dim)
         self.hidden = tuple(int(h) for h in hidden)
@@ -131,7 +123,7 @@ class ChunkedHyperNetwork(nn.Module):
     """Chunked hypernetwork: ``ceil(P / chunk_dim)`` chunks, one per chunk embedding.
 
     Args:
-        target_shapes: shapes of the target network (checked).
+        target_shapes: shapes of the target network's tensors (checked).
         emb_dim: task embedding size.
         hidden: hidden layer widths.
         chunk_emb_dim: chunk embedding size.
@@ -154,7 +146,7 @@ class ChunkedHyperNetwork(nn.Module):
         generator: torch.Generator | None = None,
     ):
         super().__init__()
-        self.target_shapes = check_mlp_shapes(target_shapes)
+        self.target_shapes = check_target_shapes(target_shapes)
         self.num_outputs = num_weights(self.target_shapes)
         if chunk_dim < 1 or chunk_emb_dim < 1:
             raise ValueError(

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from clfd_bench.learning.mlp import activation, mlp_forward, mlp_param_shapes
+from clfd_bench.learning.mlp import activation, init_mlp_weights, mlp_forward, mlp_param_shapes
 
 __all__ = ["NodeSpec", "VectorField"]
 
@@ -51,6 +51,15 @@ class NodeSpec:
     def param_shapes(self) -> list[tuple[int, ...]]:
         """Shapes of the weights ``[W0, b0, ..., WL, bL]`` the field needs."""
         return mlp_param_shapes(self.n_in, self.hidden, self.dim)
+
+    def init_weights(self, generator: torch.Generator | None = None,
+                     dtype: torch.dtype = torch.float32) -> list[Tensor]:
+        """Fresh weights (``torch.nn.Linear``'s initialisation, as the original code)."""
+        return init_mlp_weights(self.param_shapes(), generator, dtype)
+
+    def field(self, weights: Sequence[Tensor], cond: Tensor | None = None) -> VectorField:
+        """The vector field with these weights (``param_shapes()``) and task embedding."""
+        return VectorField(self, weights, cond)
 
 
 class VectorField:

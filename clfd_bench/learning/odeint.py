@@ -88,8 +88,8 @@ def integrate(
     Args:
         field: ``f(t, y)``, ``y: [N, D] -> [N, D]``.
         y0: ``[N, D]`` initial states (at ``t[0]``).
-        t: ``[T]`` strictly increasing output times (``[N, T]`` per-sample times: only
-            with ``rk4`` and a :class:`~clfd_bench.learning.node.VectorField`).
+        t: ``[T]`` strictly increasing output times (``[N, T]`` per-sample times: with a
+            fixed-grid solver; the field is then called with ``[N, 1]`` times).
         solver: the solver and its settings.
         fused: override ``solver.backend`` (True: ``fused``, False: ``autograd``).
 
@@ -116,7 +116,10 @@ def integrate(
             return dopri5_mlp(y0, t, field.w0y, field.w0t, field.bias, field.rest,
                               field.spec.activation, solver.rtol, solver.atol)
     if t.dim() == 2:
-        raise ValueError("per-sample times [N, T] need solver 'rk4' and a VectorField")
+        if solver.method not in FIXED_SOLVERS:
+            raise ValueError(f"per-sample times [N, T] need a fixed-grid solver "
+                             f"({', '.join(FIXED_SOLVERS)}), got {solver.method!r}")
+        return _per_sample_grid(field, y0, t.to(y0.dtype), solver)
     if solver.method in ADAPTIVE_SOLVERS:
         from torchdiffeq import odeint
 
@@ -136,6 +139,42 @@ def integrate(
             y = step(field, t0 + s * h, y, h)
         states.append(y)
     return torch.stack(states, dim=1)
+
+
+def _per_sample_grid(field: Field, y0: Tensor, t: Tensor, solver: SolverSpec) -> Tensor:
+    """The fixed-grid loop with each sample on its own time grid ``t: [N, T]``: step sizes
+    ``[N, 1]``, the field called with ``[N, 1]`` times."""
+    tableau = _TABLEAUX[solver.method]
+    n = solver.substeps
+    y, states = y0, [y0]
+    for k in range(t.shape[1] - 1):
+        t0 = t[:, k : k + 1]
+        h = (t[:, k + 1 : k + 2] - t0) / n
+        for s in range(n):
+            y = tableau(field, t0 + s * h, y, h)
+        states.append(y)
+    return torch.stack(states, dim=1)
+
+
+def _rk4_tensor(f: Field, t: Tensor, y: Tensor, h: Tensor) -> Tensor:
+    half = 0.5 * h
+    k1 = f(t, y)
+    k2 = f(t + half, y + k1 * half)
+    k3 = f(t + half, y + k2 * half)
+    k4 = f(t + h, y + k3 * h)
+    return y + (k1 + 2.0 * (k2 + k3) + k4) * (h / 6.0)
+
+
+def _midpoint_tensor(f: Field, t: Tensor, y: Tensor, h: Tensor) -> Tensor:
+    return y + f(t + 0.5 * h, y + f(t, y) * (0.5 * h)) * h
+
+
+def _euler_tensor(f: Field, t: Tensor, y: Tensor, h: Tensor) -> Tensor:
+    return y + f(t, y) * h
+
+
+_TABLEAUX = {"rk4": _rk4_tensor, "midpoint": _midpoint_tensor, "euler": _euler_tensor}
+"""The fixed-grid steps with per-sample ``[N, 1]`` times and step sizes."""
 
 
 def _rk4(f: Field, t: float, y: Tensor, h: float) -> Tensor:

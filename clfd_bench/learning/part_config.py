@@ -26,6 +26,7 @@ __all__ = [
     "PART_FIELDS",
     "PART_RULES",
     "PartConfig",
+    "SNODE_KEYS",
     "Rule",
     "TIME_AXES",
 ]
@@ -194,6 +195,12 @@ PART_RULES: dict[str, Rule] = {
     "tangent_scale": Rule("float", lo=0, lo_open=True,
                           what="factor on the orientation tangent vectors the NODE learns"),
     "time_axis": Rule("str", choices=TIME_AXES),
+    # stable NODE (--node s), clfd_bench.learning.stable
+    "lyap_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the sNODE's ICNN"),
+    "snode_alpha": Rule("float", lo=0, lo_open=True, what="decay rate of V along the sNODE"),
+    "snode_eps": Rule("float", lo=0, lo_open=True, what="weight of V's quadratic floor"),
+    "snode_rehu": Rule("float", lo=0, lo_open=True, what="ReHU width of the sNODE's ICNN"),
+    "snode_clock": Rule("bool"),
 }
 """The type and valid range of every :class:`PartConfig` field (one entry per field)."""
 
@@ -265,6 +272,12 @@ class PartConfig:
         orientation commands use 100; with ``normalize`` on, the factor cancels);
         ``time_axis`` (:data:`TIME_AXES`: ``uniform``, or ``first_demo``, the first demo's own
         time stamps as the released code; differs only on LASA, where each demo has its own).
+    Stable NODE (read only by ``--node s`` runs, :mod:`clfd_bench.learning.stable`; saved
+        only when not at their defaults, :data:`SNODE_KEYS`): ``lyap_hidden`` widths of the
+        Lyapunov function's ICNN, ``snode_alpha`` its decay rate, ``snode_eps`` its quadratic
+        floor, ``snode_rehu`` the ICNN's ReHU width, ``snode_clock`` the follow-up's time input
+        (voids the stability guarantee). The nominal field uses ``node_hidden`` and
+        ``activation``.
     """
 
     iterations: int
@@ -305,6 +318,11 @@ class PartConfig:
     tangent_goal: str = "demo"
     tangent_scale: float = 1.0
     time_axis: str = "uniform"
+    lyap_hidden: tuple[int, ...] = (100, 100)
+    snode_alpha: float = 0.5
+    snode_eps: float = 1e-4
+    snode_rehu: float = 0.01
+    snode_clock: bool = False
     extras: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
@@ -354,6 +372,9 @@ class PartConfig:
         empty (so configs of the built-in methods read as before)."""
         out = dataclasses.asdict(self)
         extras = out.pop("extras")
+        for key in SNODE_KEYS:  # runs saved before the sNODE existed read the same
+            if out[key] == PART_FIELDS[key].default:
+                del out[key]
         out = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
         if extras:
             out["extras"] = {k: list(v) if isinstance(v, tuple) else v for k, v in extras}
@@ -373,3 +394,7 @@ COMMON_KEYS = frozenset(PART_FIELDS) - {
     "importance_merge",
 }
 """Keys every method accepts; the rest are method-specific (see ``Method.hyperparameters``)."""
+
+SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_clock")
+"""The stable NODE's keys: left out of :meth:`PartConfig.to_dict` at their defaults, so the
+saved configs of NODE^T/NODE^I runs, and of runs made before they existed, do not change."""

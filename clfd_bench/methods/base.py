@@ -32,7 +32,7 @@ import torch
 from torch import Tensor, nn
 
 from clfd_bench.learning.batches import BatchSampler, BatchSpec
-from clfd_bench.learning.node import NodeSpec, VectorField
+from clfd_bench.learning.fields import Field, FieldSpec
 from clfd_bench.learning.part_config import PartConfig, Rule
 
 __all__ = ["Method", "StepContext", "TaskData"]
@@ -98,7 +98,7 @@ class Method(nn.Module):
     """A plugin's hyperparameter file (same tables as ``baselines/<name>.toml``), relative to
     its module's folder; ``--config`` overrides it. Built-in methods use ``baselines/``."""
 
-    def __init__(self, node: NodeSpec, cfg: PartConfig):
+    def __init__(self, node: FieldSpec, cfg: PartConfig):
         super().__init__()
         self.cfg = cfg
         self.node_spec = node
@@ -116,7 +116,7 @@ class Method(nn.Module):
             self.add_task()
 
     # -- model ----------------------------------------------------------------------
-    def field(self, task: int) -> VectorField:
+    def field(self, task: int) -> Field:
         """The vector field that reproduces ``task``."""
         raise NotImplementedError
 

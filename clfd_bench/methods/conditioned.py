@@ -12,8 +12,7 @@ import dataclasses
 import torch
 from torch import nn
 
-from clfd_bench.learning.mlp import init_mlp_weights
-from clfd_bench.learning.node import NodeSpec, VectorField
+from clfd_bench.learning.fields import Field, FieldSpec
 from clfd_bench.methods.base import Method
 
 __all__ = ["ConditionedNodeMethod"]
@@ -24,13 +23,13 @@ class ConditionedNodeMethod(Method):
 
     hyperparameters = frozenset({"task_emb_dim"})
 
-    def __init__(self, node: NodeSpec, cfg):
+    def __init__(self, node: FieldSpec, cfg):
         if cfg.task_emb_dim < 1:
             raise ValueError(f"method {self.name!r} needs task_emb_dim >= 1")
         node = dataclasses.replace(node, cond_dim=cfg.task_emb_dim)
         super().__init__(node, cfg)
         self.weights = nn.ParameterList(
-            nn.Parameter(w) for w in init_mlp_weights(node.param_shapes())
+            nn.Parameter(w) for w in node.init_weights()
         )
         self.embeddings = nn.ParameterList()
 
@@ -38,8 +37,8 @@ class ConditionedNodeMethod(Method):
         self.embeddings.append(nn.Parameter(torch.randn(self.cfg.task_emb_dim)))
         super().add_task()
 
-    def field(self, task: int) -> VectorField:
-        return VectorField(self.node_spec, list(self.weights), self.embeddings[task])
+    def field(self, task: int) -> Field:
+        return self.node_spec.field(list(self.weights), self.embeddings[task])
 
     def trainable(self, task: int) -> list[nn.Parameter]:
         return [*self.weights, self.embeddings[task]]

@@ -59,7 +59,7 @@ import torch
 from torch import Tensor
 
 from clfd_bench.learning.batches import BatchSpec
-from clfd_bench.learning.node import NodeSpec, VectorField
+from clfd_bench.learning.fields import FieldSpec
 from clfd_bench.learning.objective import batch_spec, row_batch, solver_spec, trajectory_loss
 from clfd_bench.learning.odeint import SolverSpec
 from clfd_bench.learning.part_config import Rule
@@ -79,7 +79,7 @@ def empirical_fisher(
     ``w``, over the ``S`` rows of all ``batches``.
 
     Args:
-        field_of: ``weights -> VectorField`` (the task's field with these weights).
+        field_of: ``weights -> Field`` (the task's field with these weights).
         weights: the weights (tensors that require gradients).
         batches: training batches ``(t [L] or [B, L], y [B, L, D])``; every row is a sample
             whose loss is :func:`~clfd_bench.learning.objective.trajectory_loss` of that row.
@@ -110,7 +110,7 @@ class OnlineEWC(ConditionedNodeMethod):
         "ewc_batches": Rule("int", lo=1, what="training batches drawn for each task's Fisher"),
     }
 
-    def __init__(self, node: NodeSpec, cfg):
+    def __init__(self, node: FieldSpec, cfg):
         super().__init__(node, cfg)
         for i, w in enumerate(self.weights):
             self.register_buffer(f"fisher_{i}", torch.zeros_like(w))
@@ -135,7 +135,7 @@ class OnlineEWC(ConditionedNodeMethod):
         emb = self.embeddings[task].detach()
         weights = [w.detach().clone().requires_grad_(True) for w in self.weights]
         return empirical_fisher(
-            lambda ws: VectorField(self.node_spec, ws, emb), weights,
+            lambda ws: self.node_spec.field(ws, emb), weights,
             self.fisher_batches(data), solver_spec(self.cfg),
         )
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from clfd_bench.learning.fields import Field
 from clfd_bench.learning.hnet_reg import adam_lookahead, output_regularizer
 from clfd_bench.learning.hypernet import ChunkedHyperNetwork, HyperNetwork
-from clfd_bench.learning.node import VectorField
 from clfd_bench.methods.base import Method, StepContext, TaskData
 
 __all__ = ["ChunkedHypernetworkMethod", "HypernetworkMethod"]
@@ -48,8 +48,8 @@ class HypernetworkMethod(Method):
         self.embeddings.append(nn.Parameter(torch.randn(self.cfg.task_emb_dim)))
         super().add_task()
 
-    def field(self, task: int) -> VectorField:
-        return VectorField(self.node_spec, self.hnet.target_weights(self.embeddings[task]))
+    def field(self, task: int) -> Field:
+        return self.node_spec.field(self.hnet.target_weights(self.embeddings[task]))
 
     def trainable(self, task: int) -> list[nn.Parameter]:
         return [*self.hnet.regularized, self.embeddings[task]]

@@ -27,7 +27,6 @@ import torch
 from torch import Tensor
 from torch.func import grad, vmap
 
-from clfd_bench.learning.node import VectorField
 from clfd_bench.methods.base import TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
 from clfd_bench.methods.importance import ImportancePenaltyMethod
@@ -43,7 +42,7 @@ def output_norm_importance(
     """``1/N sum_n |d ||f(t_n, y_n)||^2 / d w|`` for every weight tensor ``w``.
 
     Args:
-        field_of: ``weights -> VectorField``.
+        field_of: ``weights -> Field``.
         weights: the NODE weights (plain tensors).
         ys: ``[N, D]`` states. ts: ``[N]`` their times.
     """
@@ -90,7 +89,7 @@ class MemoryAwareSynapses(ImportancePenaltyMethod):
             ys, ts = ys[idx], ts[idx]
         emb = self.embeddings[task].detach()
         importance = output_norm_importance(
-            lambda ws: VectorField(self.node_spec, list(ws), emb), list(self.weights), ys, ts
+            lambda ws: self.node_spec.field(list(ws), emb), list(self.weights), ys, ts
         )
         with torch.no_grad():
             for i, w in enumerate(self.weights):

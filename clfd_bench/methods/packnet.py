@@ -44,7 +44,7 @@ import math
 import torch
 from torch import Tensor, nn
 
-from clfd_bench.learning.node import VectorField
+from clfd_bench.learning.fields import Field
 from clfd_bench.learning.part_config import Rule
 from clfd_bench.methods.base import StepContext, TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
@@ -116,8 +116,8 @@ class PackNet(ConditionedNodeMethod):
             out[i] = out[i] * (self.owner(i) <= task).to(out[i].dtype)
         return out
 
-    def field(self, task: int) -> VectorField:
-        return VectorField(self.node_spec, self.masked_weights(task), self.embeddings[task])
+    def field(self, task: int) -> Field:
+        return self.node_spec.field(self.masked_weights(task), self.embeddings[task])
 
     # -- hooks ----------------------------------------------------------------------
     def on_task_start(self, task: int, data: TaskData) -> None:

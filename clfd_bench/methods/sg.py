@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from torch import nn
 
-from clfd_bench.learning.mlp import init_mlp_weights
-from clfd_bench.learning.node import VectorField
+from clfd_bench.learning.fields import Field
 from clfd_bench.methods.base import Method
 
 __all__ = ["SingleNodePerTask"]
@@ -25,13 +24,13 @@ class SingleNodePerTask(Method):
     def add_task(self) -> None:
         holder = nn.Module()
         holder.weights = nn.ParameterList(
-            nn.Parameter(w) for w in init_mlp_weights(self.node_spec.param_shapes())
+            nn.Parameter(w) for w in self.node_spec.init_weights()
         )
         self.nets.append(holder)
         super().add_task()
 
-    def field(self, task: int) -> VectorField:
-        return VectorField(self.node_spec, list(self.nets[task].weights))
+    def field(self, task: int) -> Field:
+        return self.node_spec.field(list(self.nets[task].weights))
 
     def trainable(self, task: int) -> list[nn.Parameter]:
         return list(self.nets[task].weights)

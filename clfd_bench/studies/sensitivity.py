@@ -38,6 +38,7 @@ from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.leaderboard.plots import _plt, _save
 from clfd_bench.leaderboard.runner import run_specs
 from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
+from clfd_bench.node_variants import node_label
 
 __all__ = [
     "ConfigDraw",
@@ -308,7 +309,7 @@ def _markdown(summary: dict, scores: list[ConfigScore], meta: dict[str, Any]) ->
     lines = [
         "# Sensitivity to the regularisation hyperparameters",
         "",
-        f"Dataset {meta['dataset']}, NODE^{meta['node'].upper()}, profile {meta['profile']}, "
+        f"Dataset {meta['dataset']}, {node_label(meta['node'])}, profile {meta['profile']}, "
         f"seed {meta['seed']}, {meta['configs']} configurations per method drawn uniformly "
         f"({ranges})" + (f"; first {meta['tasks']} tasks" if meta.get("tasks") else "") + ".",
         "CL_score / CL_stability over ACC, REM, MS, TE, FS (no SSS, as in the paper; FS across "

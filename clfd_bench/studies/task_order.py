@@ -31,6 +31,7 @@ from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
 from clfd_bench.leaderboard.grid import RunSpec, make_grid
 from clfd_bench.leaderboard.plots import _errors_after, _median_band, _plt, _save
 from clfd_bench.leaderboard.runner import run_specs
+from clfd_bench.node_variants import node_label
 
 __all__ = [
     "OrderCell",
@@ -170,7 +171,7 @@ def _markdown(cells: list[OrderCell], spread: list[dict[str, Any]], meta: dict[s
         "# Robustness to task order",
         "",
         f"Methods {', '.join(m.upper() for m in meta['methods'])}; orders {meta['orders']}; "
-        f"seeds {meta['seeds']}; profile {meta['profile']}; NODE^{meta['node'].upper()}"
+        f"seeds {meta['seeds']}; profile {meta['profile']}; {node_label(meta['node'])}"
         + (f"; first {meta['tasks']} tasks" if meta.get("tasks") else "")
         + ("; with simulated execution" if meta.get("sim") else "; no simulation")
         + ".",

@@ -1,0 +1,288 @@
+"""The stable NODE (sNODE): a vector field that is globally asymptotically stable at the
+origin by construction (Kolter & Manek 2019, "Learning stable deep dynamics models"; used as
+the target network of Auddy et al.'s follow-up, "Scalable and efficient continual learning
+from demonstration via a hypernetwork-generated stable dynamics model").
+
+The field is a nominal MLP ``f_hat`` projected so that a learned Lyapunov function ``V``
+decreases along it at rate ``alpha``::
+
+    f(z) = f_hat(z) - grad V(z) * relu(<grad V(z), f_hat(z)> + alpha V(z)) / |grad V(z)|^2
+
+so ``dV/dt = <grad V, f> <= -alpha V`` everywhere. ``V`` is positive definite with its only
+minimum at the origin::
+
+    V(z) = rehu_1(g(z) - g(0)) + eps |z|^2
+
+with ``g`` an input-convex network (ICNN): hidden layers ``s_i = rehu_d(W_i z + b_i +
+softplus(U_i) s_{i-1} / width_i)`` (the passthrough divided by the layer's output width, as
+the released code does), output ``g = W_k z + b_k + softplus(U_k) s_{k-1}``. ``rehu_d`` is the
+rectified Huber unit (0 below 0, ``u^2 / 2d`` up to ``d``, ``u - d/2`` above). The learner
+translates each task so that its goal is the origin, so every prediction converges to the
+goal from any start.
+
+``grad V`` is computed in closed form (a backward sweep through the ICNN written with torch
+operations), so the field evaluates under ``torch.no_grad()`` and training needs first-order
+autograd only (the released code calls ``torch.autograd.grad(create_graph=True)``; same
+values).
+
+Inputs: the state ``y``, plus the time as a last coordinate with ``clock = True`` (the
+follow-up's released commands, ``--explicit_time 1``: ``f_hat`` and ``V`` see ``[y, t]``, the
+nominal field is padded with ``dt/dt = 1`` and the projected time component is dropped). The
+clock voids the guarantee (``V``'s minimum is at ``y = 0, t = 0`` and the real clock does not
+follow the projection), which is why the ``fast`` profile runs without it. A task embedding
+(task-conditioned methods) is a constant input to both networks, folded into their first
+biases as :class:`~clfd_bench.learning.node.VectorField` does.
+
+Weight layout (the order a hypernetwork emits them in): the ``f_hat`` MLP ``[W0, b0, ...,
+WL, bL]`` (:func:`~clfd_bench.learning.mlp.mlp_param_shapes`), then the ICNN, layer by layer:
+``W0, b0`` and for every later layer ``W_i, b_i, U_i``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+from clfd_bench.learning.mlp import activation, mlp_forward, mlp_param_shapes
+
+__all__ = ["StableField", "StableSpec", "lyapunov", "rehu", "rehu_grad"]
+
+
+def rehu(u: Tensor, d: float) -> Tensor:
+    """Rectified Huber unit: 0 for ``u <= 0``, ``u^2 / (2d)`` for ``0 < u < d``, ``u - d/2``
+    above; continuously differentiable. Written as ``c^2 / 2d + relu(u - d)`` with
+    ``c = clamp(u, 0, d)``."""
+    c = u.clamp(0.0, d)
+    return c * c * (0.5 / d) + F.relu(u - d)
+
+
+def rehu_grad(u: Tensor, d: float) -> Tensor:
+    """Derivative of :func:`rehu`: ``clamp(u, 0, d) / d`` (0, ``u / d``, 1)."""
+    return u.clamp(0.0, d) * (1.0 / d)
+
+
+@dataclass(frozen=True)
+class StableSpec:
+    """Architecture of a stable NODE.
+
+    Attributes:
+        dim: D, the state dimension.
+        hidden: hidden widths of the nominal field ``f_hat``.
+        lyap_hidden: hidden widths of the ICNN ``g`` of the Lyapunov function (the follow-up:
+            ``(100, 100)``).
+        clock: the follow-up's time input (see the module docstring; voids the guarantee).
+        cond_dim: size of a task embedding given as an extra input (0: none).
+        activation: hidden activation of ``f_hat`` (the follow-up: ``relu``).
+        alpha: decay rate of ``V`` along the field (the follow-up: 0.5).
+        eps: weight of the quadratic floor ``eps |z|^2`` of ``V`` (the follow-up: 1e-4).
+        rehu_d: the ICNN's ReHU width (the follow-up: 0.01).
+    """
+
+    dim: int
+    hidden: tuple[int, ...]
+    lyap_hidden: tuple[int, ...] = (100, 100)
+    clock: bool = False
+    cond_dim: int = 0
+    activation: str = "relu"
+    alpha: float = 0.5
+    eps: float = 1e-4
+    rehu_d: float = 0.01
+
+    def __post_init__(self) -> None:
+        activation(self.activation)  # validates the name
+        if self.dim < 1 or self.cond_dim < 0 or not self.hidden or not self.lyap_hidden:
+            raise ValueError(f"invalid StableSpec {self}: dim >= 1, cond_dim >= 0, hidden and "
+                             "lyap_hidden non-empty")
+        if self.alpha <= 0 or self.eps <= 0 or self.rehu_d <= 0:
+            raise ValueError(f"invalid StableSpec {self}: alpha, eps and rehu_d must be > 0")
+
+    @property
+    def time_input(self) -> bool:
+        """Whether the field reads the time (the clock)."""
+        return self.clock
+
+    @property
+    def n_state(self) -> int:
+        """Width of the space ``V`` lives in: ``dim`` (+1 with the clock)."""
+        return self.dim + int(self.clock)
+
+    @property
+    def n_in(self) -> int:
+        """Input width of both networks: ``cond_dim + n_state``."""
+        return self.cond_dim + self.n_state
+
+    def fhat_shapes(self) -> list[tuple[int, ...]]:
+        """Shapes of the nominal field's weights."""
+        return mlp_param_shapes(self.n_in, self.hidden, self.dim)
+
+    def icnn_shapes(self) -> list[tuple[int, ...]]:
+        """Shapes of the ICNN's weights: ``W0, b0`` then ``W_i, b_i, U_i`` per later layer."""
+        sizes = [*self.lyap_hidden, 1]
+        shapes: list[tuple[int, ...]] = [(sizes[0], self.n_in), (sizes[0],)]
+        for prev, size in zip(sizes[:-1], sizes[1:], strict=True):
+            shapes += [(size, self.n_in), (size,), (size, prev)]
+        return shapes
+
+    def param_shapes(self) -> list[tuple[int, ...]]:
+        """Shapes of all weights: ``f_hat``'s, then the ICNN's."""
+        return self.fhat_shapes() + self.icnn_shapes()
+
+    def init_weights(self, generator: torch.Generator | None = None,
+                     dtype: torch.dtype = torch.float32) -> list[Tensor]:
+        """Fresh weights as ``torch.nn.Linear`` initialises (the released code's choice for
+        both networks): every matrix ``U(+-1/sqrt(fan_in))``, every bias
+        ``U(+-1/sqrt(fan_in of its layer's W))``."""
+        out: list[Tensor] = []
+        fan_in = 1
+        for shape in self.param_shapes():
+            if len(shape) == 2:  # every bias directly follows its layer's W
+                fan_in = shape[1]
+            bound = 1.0 / math.sqrt(fan_in)
+            out.append((torch.rand(shape, generator=generator, dtype=dtype) * 2 - 1) * bound)
+        return out
+
+    def field(self, weights: Sequence[Tensor], cond: Tensor | None = None) -> StableField:
+        """The vector field with these weights (``param_shapes()``) and task embedding."""
+        return StableField(self, weights, cond)
+
+
+class _Icnn:
+    """The ICNN ``g`` and its input gradient, for a batch, with the embedding folded in."""
+
+    def __init__(self, spec: StableSpec, weights: Sequence[Tensor], cond: Tensor | None):
+        c = spec.cond_dim
+        self.w: list[Tensor] = []  # [h_i, n_state] the state columns of W_i
+        self.b: list[Tensor] = []  # [h_i] biases with the embedding's part folded in
+        self.u: list[Tensor] = []  # [h_i, h_{i-1}] softplus(U_i) / h_i
+        self.rehu_d = spec.rehu_d
+        k = 0
+        for i in range(len(spec.lyap_hidden) + 1):
+            w, b = weights[k], weights[k + 1]
+            k += 2
+            if i > 0:
+                u = weights[k]
+                k += 1
+                scale = 1.0 if i == len(spec.lyap_hidden) else 1.0 / u.shape[0]
+                self.u.append(F.softplus(u) * scale)
+            self.w.append(w[:, c:])
+            self.b.append(b if cond is None else b + w[:, :c] @ cond)
+
+    def value(self, z: Tensor) -> Tensor:
+        """``g(z): [B]`` for ``z: [B, n_state]``."""
+        pre = torch.addmm(self.b[0], z, self.w[0].t())
+        for i in range(1, len(self.w)):
+            pre = torch.addmm(self.b[i], z, self.w[i].t()) + rehu(pre, self.rehu_d) @ self.u[
+                i - 1].t()
+        return pre[:, 0]
+
+    def value_and_grad(self, z: Tensor) -> tuple[Tensor, Tensor]:
+        """``g(z): [B]`` and ``dg/dz: [B, n_state]`` for ``z: [B, n_state]``."""
+        d = self.rehu_d
+        pre = torch.addmm(self.b[0], z, self.w[0].t())
+        slopes = []  # rehu'(pre_i) of every hidden layer
+        for i in range(1, len(self.w)):
+            c = pre.clamp(0.0, d)
+            slopes.append(c * (1.0 / d))
+            act = c * c * (0.5 / d) + F.relu(pre - d)  # rehu(pre)
+            pre = torch.addmm(self.b[i], z, self.w[i].t()) + act @ self.u[i - 1].t()
+        # backward sweep: dg/dpre_k = 1, dg/dpre_{i-1} = (dg/dpre_i @ U'_i) * rehu'(pre_{i-1})
+        delta = slopes[-1] * self.u[-1][0]  # [B, h_{k-1}] (the output layer has width 1)
+        grad = self.w[-1][0].expand_as(z)
+        for i in range(len(self.w) - 2, 0, -1):
+            grad = torch.addmm(grad, delta, self.w[i])
+            delta = (delta @ self.u[i - 1]) * slopes[i - 1]
+        grad = torch.addmm(grad, delta, self.w[0])
+        return pre[:, 0], grad
+
+
+def lyapunov(spec: StableSpec, weights: Sequence[Tensor], z: Tensor,
+             cond: Tensor | None = None) -> tuple[Tensor, Tensor]:
+    """``V(z): [B]`` and ``grad V(z): [B, n_state]`` for ``z: [B, n_state]`` (the state, and
+    the time last with the clock). ``V(0) = 0``, ``V(z) >= eps |z|^2``."""
+    icnn = _Icnn(spec, weights[len(spec.fhat_shapes()):], cond)
+    return _lyapunov(spec, icnn, _origin_value(icnn, spec), z)
+
+
+def _origin_value(icnn: _Icnn, spec: StableSpec) -> Tensor:
+    """``g(0)``, V's reference (differentiable: V(0) = 0 for every value of the weights)."""
+    w = icnn.w[0]
+    return icnn.value(torch.zeros(1, spec.n_state, dtype=w.dtype, device=w.device))
+
+
+def _lyapunov(spec: StableSpec, icnn: _Icnn, g0: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+    g, dg = icnn.value_and_grad(z)
+    u = g - g0
+    v = rehu(u, 1.0) + spec.eps * (z * z).sum(dim=1)
+    dv = rehu_grad(u, 1.0).unsqueeze(1) * dg + (2.0 * spec.eps) * z
+    return v, dv
+
+
+class StableField:
+    """``dy/dt = f(t, y)`` of a stable NODE, weights given explicitly.
+
+    Args:
+        spec: the architecture.
+        weights: matching ``spec.param_shapes()`` (may carry gradients).
+        cond: ``[cond_dim]`` task embedding when ``spec.cond_dim > 0``.
+
+    Call as ``field(t, y)`` with ``t`` a scalar (or ``[B, 1]`` per-sample times) and
+    ``y: [B, dim]``; returns ``[B, dim]``.
+    """
+
+    def __init__(self, spec: StableSpec, weights: Sequence[Tensor], cond: Tensor | None = None):
+        shapes = spec.param_shapes()
+        got = [tuple(w.shape) for w in weights]
+        if got != shapes:
+            raise ValueError(f"weights have shapes {got}, stable NODE {spec} needs {shapes}")
+        if (cond is None) != (spec.cond_dim == 0):
+            raise ValueError(f"stable NODE with cond_dim={spec.cond_dim} needs "
+                             f"{'a' if spec.cond_dim else 'no'} task embedding")
+        if cond is not None and tuple(cond.shape) != (spec.cond_dim,):
+            raise ValueError(f"task embedding has shape {tuple(cond.shape)}, "
+                             f"expected ({spec.cond_dim},)")
+        self.spec = spec
+        n_fhat = len(spec.fhat_shapes())
+        fhat = list(weights[:n_fhat])
+        c = spec.cond_dim
+        self._act = activation(spec.activation)
+        self._w0 = fhat[0][:, c:].t()  # [n_state, H]
+        self._b0 = fhat[1] if cond is None else fhat[1] + fhat[0][:, :c] @ cond
+        self._rest = fhat[2:]
+        self._icnn = _Icnn(spec, weights[n_fhat:], cond)
+        self._g0 = _origin_value(self._icnn, spec)  # once per set of weights
+
+    def _state(self, t: Tensor | float, y: Tensor) -> Tensor:
+        if not self.spec.clock:
+            return y
+        if isinstance(t, Tensor):  # [B, 1] per-sample times, or one time (also under vmap)
+            tt = t.to(y.dtype) if t.dim() == 2 else t.to(y.dtype).reshape(1, 1).expand(
+                y.shape[0], 1)
+        else:
+            tt = torch.full((y.shape[0], 1), float(t), dtype=y.dtype, device=y.device)
+        return torch.cat([y, tt], dim=1)
+
+    def nominal(self, t: Tensor | float, y: Tensor) -> Tensor:
+        """``f_hat(z)`` padded with ``dt/dt = 1`` under the clock: ``[B, n_state]``."""
+        z = self._state(t, y)
+        fx = mlp_forward(self._act(torch.addmm(self._b0, z, self._w0)), self._rest, self._act)
+        if self.spec.clock:
+            fx = torch.cat([fx, torch.ones_like(fx[:, :1])], dim=1)
+        return fx
+
+    def lyapunov(self, t: Tensor | float, y: Tensor) -> tuple[Tensor, Tensor]:
+        """``V`` and ``grad V`` at ``[y, t]`` (``[y]`` without the clock): ``[B]``, ``[B, n]``."""
+        return _lyapunov(self.spec, self._icnn, self._g0, self._state(t, y))
+
+    def __call__(self, t: Tensor | float, y: Tensor) -> Tensor:
+        fx = self.nominal(t, y)
+        v, dv = self.lyapunov(t, y)
+        push = F.relu((dv * fx).sum(dim=1) + self.spec.alpha * v)
+        # |grad V|^2 is 0 only at the origin, where push is 0 too: the floor avoids 0/0
+        norm2 = (dv * dv).sum(dim=1).clamp_min(torch.finfo(dv.dtype).tiny)
+        out = fx - dv * (push / norm2).unsqueeze(1)
+        return out[:, : self.spec.dim]
