@@ -111,7 +111,7 @@ def test_clock_projection_holds_in_the_augmented_space_only():
     assert torch.equal(field(t, y), augmented[:, :3])
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", [0, 1])
 def test_trajectories_from_far_starts_follow_the_decay_bound_down_to_a_step_floor(seed):
     """Along RK4 trajectories (steps of 0.1, float64) from starts up to ~100 units away, V
     follows V(0) exp(-alpha t) (within 2x: far out, where |f| ~ 100, a step of 0.1 overshoots
