@@ -62,6 +62,26 @@ class NodeSpec:
         return VectorField(self, weights, cond)
 
 
+def check_field_inputs(what: str, spec, weights: Sequence[Tensor],
+                       cond: Tensor | None) -> None:
+    """Raise a ValueError unless ``weights`` have ``spec.param_shapes()`` and ``cond`` is a
+    ``[cond_dim]`` embedding exactly when ``spec.cond_dim > 0`` (``what`` names the network in
+    the message). Shared by every field class."""
+    shapes = spec.param_shapes()
+    got = [tuple(w.shape) for w in weights]
+    if got != shapes:
+        raise ValueError(f"weights have shapes {got}, {what} {spec} needs {shapes}")
+    if (cond is None) != (spec.cond_dim == 0):
+        raise ValueError(
+            f"{what} with cond_dim={spec.cond_dim} needs "
+            f"{'a' if spec.cond_dim else 'no'} task embedding"
+        )
+    if cond is not None and tuple(cond.shape) != (spec.cond_dim,):
+        raise ValueError(
+            f"task embedding has shape {tuple(cond.shape)}, expected ({spec.cond_dim},)"
+        )
+
+
 class VectorField:
     """``dy/dt = f(t, y)`` for a batch of states, with weights given explicitly.
 
@@ -76,19 +96,7 @@ class VectorField:
     """
 
     def __init__(self, spec: NodeSpec, weights: Sequence[Tensor], cond: Tensor | None = None):
-        shapes = spec.param_shapes()
-        got = [tuple(w.shape) for w in weights]
-        if got != shapes:
-            raise ValueError(f"weights have shapes {got}, NODE {spec} needs {shapes}")
-        if (cond is None) != (spec.cond_dim == 0):
-            raise ValueError(
-                f"NODE with cond_dim={spec.cond_dim} needs "
-                f"{'a' if spec.cond_dim else 'no'} task embedding"
-            )
-        if cond is not None and tuple(cond.shape) != (spec.cond_dim,):
-            raise ValueError(
-                f"task embedding has shape {tuple(cond.shape)}, expected ({spec.cond_dim},)"
-            )
+        check_field_inputs("NODE", spec, weights, cond)
         self.spec = spec
         self._act = activation(spec.activation)
         w0, b0 = weights[0], weights[1]

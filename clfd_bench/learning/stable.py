@@ -49,21 +49,27 @@ import torch.nn.functional as F
 from torch import Tensor
 
 from clfd_bench.learning.mlp import activation, mlp_forward, mlp_param_shapes
+from clfd_bench.learning.node import check_field_inputs
 
 __all__ = ["StableField", "StableSpec", "lyapunov", "rehu", "rehu_grad"]
 
 
 def rehu(u: Tensor, d: float) -> Tensor:
     """Rectified Huber unit: 0 for ``u <= 0``, ``u^2 / (2d)`` for ``0 < u < d``, ``u - d/2``
-    above; continuously differentiable. Written as ``c^2 / 2d + relu(u - d)`` with
-    ``c = clamp(u, 0, d)``."""
-    c = u.clamp(0.0, d)
-    return c * c * (0.5 / d) + F.relu(u - d)
+    above; continuously differentiable."""
+    return rehu_and_grad(u, d)[0]
 
 
 def rehu_grad(u: Tensor, d: float) -> Tensor:
     """Derivative of :func:`rehu`: ``clamp(u, 0, d) / d`` (0, ``u / d``, 1)."""
     return u.clamp(0.0, d) * (1.0 / d)
+
+
+def rehu_and_grad(u: Tensor, d: float) -> tuple[Tensor, Tensor]:
+    """:func:`rehu` and :func:`rehu_grad` from one clamp: ``c^2 / 2d + relu(u - d)`` and
+    ``c / d`` with ``c = clamp(u, 0, d)``."""
+    c = u.clamp(0.0, d)
+    return c * c * (0.5 / d) + F.relu(u - d), c * (1.0 / d)
 
 
 @dataclass(frozen=True)
@@ -186,9 +192,8 @@ class _Icnn:
         pre = torch.addmm(self.b[0], z, self.w[0].t())
         slopes = []  # rehu'(pre_i) of every hidden layer
         for i in range(1, len(self.w)):
-            c = pre.clamp(0.0, d)
-            slopes.append(c * (1.0 / d))
-            act = c * c * (0.5 / d) + F.relu(pre - d)  # rehu(pre)
+            act, slope = rehu_and_grad(pre, d)
+            slopes.append(slope)
             pre = torch.addmm(self.b[i], z, self.w[i].t()) + act @ self.u[i - 1].t()
         # backward sweep: dg/dpre_k = 1, dg/dpre_{i-1} = (dg/dpre_i @ U'_i) * rehu'(pre_{i-1})
         delta = slopes[-1] * self.u[-1][0]  # [B, h_{k-1}] (the output layer has width 1)
@@ -217,8 +222,9 @@ def _origin_value(icnn: _Icnn, spec: StableSpec) -> Tensor:
 def _lyapunov(spec: StableSpec, icnn: _Icnn, g0: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
     g, dg = icnn.value_and_grad(z)
     u = g - g0
-    v = rehu(u, 1.0) + spec.eps * (z * z).sum(dim=1)
-    dv = rehu_grad(u, 1.0).unsqueeze(1) * dg + (2.0 * spec.eps) * z
+    outer, slope = rehu_and_grad(u, 1.0)
+    v = outer + spec.eps * (z * z).sum(dim=1)
+    dv = slope.unsqueeze(1) * dg + (2.0 * spec.eps) * z
     return v, dv
 
 
@@ -235,16 +241,7 @@ class StableField:
     """
 
     def __init__(self, spec: StableSpec, weights: Sequence[Tensor], cond: Tensor | None = None):
-        shapes = spec.param_shapes()
-        got = [tuple(w.shape) for w in weights]
-        if got != shapes:
-            raise ValueError(f"weights have shapes {got}, stable NODE {spec} needs {shapes}")
-        if (cond is None) != (spec.cond_dim == 0):
-            raise ValueError(f"stable NODE with cond_dim={spec.cond_dim} needs "
-                             f"{'a' if spec.cond_dim else 'no'} task embedding")
-        if cond is not None and tuple(cond.shape) != (spec.cond_dim,):
-            raise ValueError(f"task embedding has shape {tuple(cond.shape)}, "
-                             f"expected ({spec.cond_dim},)")
+        check_field_inputs("stable NODE", spec, weights, cond)
         self.spec = spec
         n_fhat = len(spec.fhat_shapes())
         fhat = list(weights[:n_fhat])
@@ -268,7 +265,9 @@ class StableField:
 
     def nominal(self, t: Tensor | float, y: Tensor) -> Tensor:
         """``f_hat(z)`` padded with ``dt/dt = 1`` under the clock: ``[B, n_state]``."""
-        z = self._state(t, y)
+        return self._nominal(self._state(t, y))
+
+    def _nominal(self, z: Tensor) -> Tensor:
         fx = mlp_forward(self._act(torch.addmm(self._b0, z, self._w0)), self._rest, self._act)
         if self.spec.clock:
             fx = torch.cat([fx, torch.ones_like(fx[:, :1])], dim=1)
@@ -279,8 +278,9 @@ class StableField:
         return _lyapunov(self.spec, self._icnn, self._g0, self._state(t, y))
 
     def __call__(self, t: Tensor | float, y: Tensor) -> Tensor:
-        fx = self.nominal(t, y)
-        v, dv = self.lyapunov(t, y)
+        z = self._state(t, y)  # once: the nominal field and V read the same [y, t]
+        fx = self._nominal(z)
+        v, dv = _lyapunov(self.spec, self._icnn, self._g0, z)
         push = F.relu((dv * fx).sum(dim=1) + self.spec.alpha * v)
         # |grad V|^2 is 0 only at the origin, where push is 0 too: the floor avoids 0/0
         norm2 = (dv * dv).sum(dim=1).clamp_min(torch.finfo(dv.dtype).tiny)
