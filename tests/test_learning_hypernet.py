@@ -86,6 +86,27 @@ def test_sampled_regulariser_uses_the_requested_number_of_tasks():
     assert 0 < len(hits) < 40  # task 3 is drawn sometimes, never two tasks at once
 
 
+def test_sampled_regulariser_is_the_follow_ups_stochastic_one():
+    """clfd-snode's calc_fix_target_reg_stochastic: ``num_regs`` distinct earlier tasks per
+    step, the sum divided by how many were drawn; all of them when there are fewer."""
+    from itertools import combinations
+
+    net = _hnets(torch.float64)[0]
+    embs = torch.randn(5, 3, dtype=torch.float64)
+    offsets = torch.tensor([0.5, 1.0, 2.0, 3.0, 5.0], dtype=torch.float64)
+    targets = net(embs).detach() + offsets[:, None]  # task i off by offsets[i] everywhere
+    per_task = net.num_outputs * offsets**2  # its squared distance
+    pairs = {round(float(per_task[list(c)].mean()), 9): c for c in combinations(range(5), 2)}
+    gen = torch.Generator().manual_seed(1)
+    with torch.no_grad():
+        drawn = {round(float(output_regularizer(net, embs, targets, None, "sampled", 2, gen)), 9)
+                 for _ in range(200)}
+        every = float(output_regularizer(net, embs, targets, None, "sampled", 7, gen))
+    assert drawn <= set(pairs)  # always two distinct tasks, divided by 2 (not by 5)
+    assert len(drawn) == len(pairs)  # every pair is drawn
+    assert every == pytest.approx(float(per_task.mean()), rel=1e-12)
+
+
 def test_lookahead_is_the_step_adam_takes():
     torch.manual_seed(0)
     params = [torch.nn.Parameter(torch.randn(20, 3)), torch.nn.Parameter(torch.randn(7))]

@@ -6,6 +6,7 @@ import argparse
 import os
 import sys
 
+from clfd_bench.leaderboard.entries import entry_help
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -53,16 +54,15 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from clfd_bench.data import DATASETS
-    from clfd_bench.leaderboard.runner import run_leaderboard
-    from clfd_bench.methods import MethodClassError, get_method_class
+    from clfd_bench.leaderboard.runner import check_methods, run_leaderboard
+    from clfd_bench.methods import MethodClassError
 
     if args.dataset not in DATASETS:
         print(f"clfd-bench leaderboard: error: unknown dataset {args.dataset!r}; valid: "
               f"{', '.join(DATASETS)}", file=sys.stderr)
         return 2
     try:
-        for method in args.methods:
-            get_method_class(method)
+        check_methods(args.methods)
     except (KeyError, MethodClassError) as exc:
         print(f"clfd-bench leaderboard: error: {exc.args[0]}", file=sys.stderr)
         return 2
@@ -105,7 +105,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--dataset", required=True, help="lasa, helloworld, robotasks, robotasks9")
     p.add_argument("--methods", type=_names, default=_names(ALL_METHODS),
                    help=f"comma-separated CL methods (default {ALL_METHODS}); plugins by "
-                        "name or as package.module:ClassName (docs/methods.md)")
+                        "name or as package.module:ClassName (docs/methods.md); "
+                        f"{entry_help()} (a method with its own --node and settings, "
+                        "docs/snode.md)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
     p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--orders", type=_ints, default=[0], help="task orders (default 0)")

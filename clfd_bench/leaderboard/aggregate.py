@@ -106,14 +106,14 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
     # (those whose size is known: predictions scored from elsewhere may not give one).
     sizes: dict[str, float] = {}
     for method in methods:
-        vals = [v for r in finished if r.spec.method == method
+        vals = [v for r in finished if r.spec.label == method
                 if np.isfinite(v := _final_size(r.results))]
         if vals:
             sizes[method] = float(np.median(vals))
     unknown = {m for m in methods if m not in sizes
-               and any(r.spec.method == m and _not_provided(r.results) for r in finished)}
+               and any(r.spec.label == m and _not_provided(r.results) for r in finished)}
     for record in records:
-        row = rows[record.spec.method]
+        row = rows[record.spec.label]
         if record.status != "done" or record.results is None:
             if record.status == "failed":
                 row.runs_failed += 1
@@ -122,8 +122,8 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
         row.runs_ok += 1
         res = record.results
         cl = dict(res.get("cl_metrics", {}))
-        if len(sizes) + len(unknown) == len(methods) and record.spec.method in sizes:
-            cl["FS"] = final_model_size(sizes, record.spec.method)
+        if len(sizes) + len(unknown) == len(methods) and record.spec.label in sizes:
+            cl["FS"] = final_model_size(sizes, record.spec.label)
         row.not_provided |= _not_provided(res)
         for key in (*CRITERIA, "BWT"):
             if cl.get(key) is not None:

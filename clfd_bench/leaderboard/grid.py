@@ -41,6 +41,8 @@ class RunSpec:
             (hyperparameter studies); part of the run's name so variants never collide.
         config_file: the method's hyperparameter file (``--config``; None: its default, a
             plugin's own or ``baselines/<name>.toml``), stored absolute.
+        entry: the named entry (:mod:`clfd_bench.leaderboard.entries`) this run belongs to,
+            whose node and settings it carries; None for a bare method.
     """
 
     dataset: str
@@ -53,6 +55,7 @@ class RunSpec:
     sim: bool = True
     overrides: tuple[tuple[str, str], ...] = ()
     config_file: str | None = None
+    entry: str | None = None
 
     def __post_init__(self) -> None:
         if self.config_file is not None:
@@ -76,6 +79,11 @@ class RunSpec:
         from clfd_bench.methods import get_method_class
 
         return get_method_class(self.method).name
+
+    @property
+    def label(self) -> str:
+        """The leaderboard row the run counts in: its entry's name, else its method's."""
+        return self.entry or self.method
 
     @property
     def name(self) -> str:
@@ -150,20 +158,34 @@ def make_grid(
     configs: dict[str, str] | None = None,
 ) -> list[RunSpec]:
     """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order.
-    ``configs``: method -> its hyperparameter file (``--config METHOD=PATH``)."""
+
+    ``methods`` may name entries (:data:`~clfd_bench.leaderboard.entries.ENTRIES`): their
+    runs train the entry's method with the entry's node and settings. ``configs``: method or
+    entry name -> its hyperparameter file (``--config METHOD=PATH``).
+
+    Raises:
+        ValueError: an empty dimension, or two names whose runs would share directories.
+    """
+    from clfd_bench.leaderboard.entries import ENTRIES
+
     if not methods or not seeds or not orders:
         raise ValueError("a grid needs at least one method, one seed and one order")
-    specs = [
-        RunSpec(dataset, m, profile, s, o, node, tasks, sim,
-                config_file=(configs or {}).get(m))
-        for m, o, s in product(methods, orders, seeds)
-    ]
-    folders: dict[str, str] = {}
+    specs = []
+    for m, o, s in product(methods, orders, seeds):
+        config_file = (configs or {}).get(m)
+        entry = ENTRIES.get(m)
+        if entry is None:
+            specs.append(RunSpec(dataset, m, profile, s, o, node, tasks, sim,
+                                 config_file=config_file))
+        else:
+            specs.append(RunSpec(dataset, entry.method, profile, s, o, entry.node, tasks, sim,
+                                 entry.settings, config_file, entry=entry.name))
+    owners: dict[str, str] = {}
     for spec in specs:
-        other = folders.setdefault(spec.method_dir, spec.method)
-        if other != spec.method:
-            raise ValueError(f"methods {other!r} and {spec.method!r} are both named "
-                             f"{spec.method_dir!r}; a grid needs distinct method names")
+        other = owners.setdefault(spec.name, spec.label)
+        if other != spec.label:
+            raise ValueError(f"{other!r} and {spec.label!r} in --methods would train the same "
+                             f"runs ({spec.name}); a grid needs distinct methods")
     return specs
 
 

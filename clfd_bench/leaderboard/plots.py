@@ -31,7 +31,7 @@ def _done(records: list[RunRecord], method: str) -> list[dict]:
     return [
         r.results
         for r in records
-        if r.spec.method == method and r.status == "done" and r.results is not None
+        if r.spec.label == method and r.status == "done" and r.results is not None
     ]
 
 

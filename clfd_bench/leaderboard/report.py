@@ -49,6 +49,7 @@ from typing import Any
 from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
+from clfd_bench.leaderboard.entries import ENTRIES
 from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.node_variants import node_label
 
@@ -295,6 +296,9 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
             cells = [str(idx), row.method.upper(), runs, *cells]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", paper.note]
+    named = [ENTRIES[m].describe() for m in meta["methods"] if m in ENTRIES]
+    if named:  # their own NODE variant and settings, whatever the grid's
+        lines += ["", "Named entries: " + "; ".join(named) + "."]
     included = meta.get("included") or []
     if included:
         lines += ["", "Included runs (`--include`): " + "; ".join(

@@ -17,6 +17,7 @@ from clfd_bench.runs import RunDir, RunFileError, exclusive
 __all__ = [
     "GRID_ARG_NAMES",
     "GridRun",
+    "check_methods",
     "LeaderboardResult",
     "collect",
     "included_records",
@@ -27,6 +28,24 @@ __all__ = [
 
 GRID_ARG_NAMES = {"seed": "--seeds", "order": "--orders"}
 """The grid options run-level values come from, named in plan errors."""
+
+
+def check_methods(methods: list[str]) -> None:
+    """Every name of ``--methods`` is a method, a plugin or a named entry
+    (:data:`~clfd_bench.leaderboard.entries.ENTRIES`).
+
+    Raises:
+        UnknownMethodError: the first unknown name, with the valid methods and entries.
+        MethodClassError: a plugin class that is not a method.
+    """
+    from clfd_bench.leaderboard.entries import ENTRIES, entry_help
+    from clfd_bench.methods import UnknownMethodError, get_method_class
+
+    for name in methods:
+        try:
+            get_method_class(ENTRIES[name].method if name in ENTRIES else name)
+        except UnknownMethodError as exc:
+            raise UnknownMethodError(f"{exc}; or {entry_help()}") from None
 
 
 def validate_plan(specs: list[RunSpec], out: Path) -> None:
@@ -215,10 +234,8 @@ def run_leaderboard(
     hyperparameter file (``--config METHOD=PATH``; a method of ``methods`` each).
     """
     from clfd_bench.harness.validate import InputError, check_count
-    from clfd_bench.methods import get_method_class
 
-    for method in methods:
-        get_method_class(method)  # an unknown name fails here, listing the valid ones
+    check_methods(methods)  # an unknown name fails here, listing the valid ones
     for flag, values in (("--methods", methods), ("--seeds", seeds), ("--orders", orders)):
         if not values:
             raise InputError(f"{flag} is empty; a grid needs at least one value")

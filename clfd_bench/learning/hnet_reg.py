@@ -17,7 +17,12 @@ tasks (``m``), which is what :func:`output_regularizer` does (the paper writes `
 * ``batched``: every earlier task in ONE batched pass; the same value and gradient, cheaper.
 * ``sampled``: ``samples`` earlier tasks drawn uniformly without replacement each step (von
   Oswald et al.'s stochastic regulariser): an unbiased estimate at constant cost per step,
-  so the time per task does not grow with the number of tasks learned.
+  so the time per task does not grow with the number of tasks learned. This is the
+  follow-up paper's ``calc_fix_target_reg_stochastic`` (clfd-snode,
+  ``imitation_cl/model/hypernetwork.py``): with fewer earlier tasks than ``samples`` all are
+  used, the sum is divided by the number regularised, and the caller multiplies by β as for
+  the other modes (its ``beta_decay`` defaults to 1, i.e. one β for every task). Only the
+  random stream differs (``torch.randperm`` with the run's generator, not numpy's).
 """
 
 from __future__ import annotations
