@@ -9,7 +9,11 @@ the paper) and times ``--iterations`` training iterations on task 0 and on task 
 short task 0, so the regularisers of SI, MAS, HN and CHN are active). It prints iterations per
 second and the seconds one task of the paper's budget (15 000 iterations on LASA, 40 000 on
 HelloWorld) would take at that speed, next to the original implementation's speed measured
-on this machine class (HN on LASA task 0: ~35 it/s; SG: ~27 it/s).
+on this machine class (HN on LASA task 0: ~35 it/s; SG: ~27 it/s). ``--node`` times another
+target network (``--node s``: the stable NODE), ``--set solver_backend=autograd`` the same
+mathematics without the fused solvers.
+
+    clfd-bench bench train --methods sg hn --datasets lasa --profile fast --node s
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS, node_label
 
 __all__ = ["REFERENCE_IT_PER_S", "bench_method", "register"]
 
@@ -46,6 +52,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="hyperparameter override (e.g. hnet_reg=batched)")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads (default 1 or $CLFD_THREADS)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t",
+                   help=NODE_HELP + "; the original's speeds are for t")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", dest="json_out", default=None, help="also write rows to this file")
     p.set_defaults(func=_run)
@@ -61,6 +69,7 @@ def bench_method(
     tasks: tuple[int, ...] = (0, 1),
     overrides: tuple[str, ...] = (),
     seed: int = 0,
+    node: str = "t",
 ) -> list[dict]:
     """Time training iterations of ``method`` on ``dataset`` -> one row per timed task.
 
@@ -77,7 +86,7 @@ def bench_method(
     from clfd_bench.harness.loop import train_task, warm_up
 
     warm_up()
-    config = resolve_config(method, dataset, profile, seed=seed, overrides=overrides)
+    config = resolve_config(method, dataset, profile, seed=seed, overrides=overrides, node=node)
     ds = load_dataset(dataset)
     torch.manual_seed(seed)
     learner = Learner.from_config(config, ds[0].dim)
@@ -96,9 +105,11 @@ def bench_method(
             start = time.perf_counter()
             stats = train_task(part.method, index, data, timed, gen)
             rate = stats.iterations_per_s
-            ref = REFERENCE_IT_PER_S.get((method, dataset)) if index == 0 else None
+            ref = (REFERENCE_IT_PER_S.get((method, dataset))
+                   if index == 0 and node == "t" else None)
             rows.append({
-                "method": method, "dataset": dataset, "part": kind, "task": index,
+                "method": method, "dataset": dataset, "node": node, "part": kind,
+                "task": index,
                 "it_per_s": rate,
                 "s_per_task_paper_budget": budget / rate if rate > 0 else None,
                 "paper_iterations": budget,
@@ -119,7 +130,8 @@ def _run(args: argparse.Namespace) -> int:
 
     threads = args.threads or default_threads()
     torch.set_num_threads(threads)
-    print(f"training speed, profile {args.profile!r} model sizes, {threads} torch thread(s); "
+    print(f"training speed, profile {args.profile!r} model sizes, {node_label(args.node)}, "
+          f"{threads} torch thread(s); "
           f"{args.iterations} timed iterations per task")
     header = (f"{'method':<6} {'dataset':<11} {'part':<11} {'task':>4} {'it/s':>8} "
               f"{'s/task (paper its)':>19} {'hooks s':>8} {'vs original':>12}")
@@ -132,7 +144,7 @@ def _run(args: argparse.Namespace) -> int:
                 rows = bench_method(
                     method, dataset, profile=args.profile, iterations=args.iterations,
                     warmup=args.warmup, tasks=tuple(args.tasks),
-                    overrides=tuple(args.overrides), seed=args.seed,
+                    overrides=tuple(args.overrides), seed=args.seed, node=args.node,
                 )
             except (ConfigError, UnknownMethodError) as exc:
                 print(f"clfd-bench bench train: error: {exc}", file=sys.stderr)

@@ -13,7 +13,9 @@ Two families of solvers behind one function, :func:`integrate`:
 With the default ``backend="fused"``, ``rk4`` and ``dopri5`` through a NODE
 :class:`~clfd_bench.learning.node.VectorField` run the fused solvers
 (:mod:`~clfd_bench.learning.rk4_fused`, :mod:`~clfd_bench.learning.dopri5_fused`): the same
-algorithms without autograd's per-operation overhead, with a hand-written reverse sweep.
+algorithms without autograd's per-operation overhead, with a hand-written reverse sweep;
+``rk4`` and ``euler`` through a stable NODE :class:`~clfd_bench.learning.stable.StableField`
+run :mod:`~clfd_bench.learning.stable_fused` (the same idea).
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ from clfd_bench.learning.dopri5_fused import dopri5_mlp
 from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS
 from clfd_bench.learning.node import VectorField
 from clfd_bench.learning.rk4_fused import rk4_mlp
+from clfd_bench.learning.stable import StableField
+from clfd_bench.learning.stable_fused import FUSED_SOLVERS as STABLE_FUSED_SOLVERS
+from clfd_bench.learning.stable_fused import integrate_stable
 
 __all__ = ["ADAPTIVE_SOLVERS", "FIXED_SOLVERS", "SolverSpec", "integrate"]
 
@@ -115,6 +120,13 @@ def integrate(
         if solver.method == "dopri5" and t.dim() == 1:
             return dopri5_mlp(y0, t, field.w0y, field.w0t, field.bias, field.rest,
                               field.spec.activation, solver.rtol, solver.atol)
+    if (
+        fused
+        and isinstance(field, StableField)
+        and field.spec.activation in FUSED_ACTIVATIONS
+        and solver.method in STABLE_FUSED_SOLVERS
+    ):
+        return integrate_stable(field, y0, t, solver.method, solver.substeps)
     if t.dim() == 2:
         if solver.method not in FIXED_SOLVERS:
             raise ValueError(f"per-sample times [N, T] need a fixed-grid solver "

@@ -19,11 +19,12 @@ from torch import Tensor
 
 from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, MLPTape
 
-__all__ = ["FUSED_ACTIVATIONS", "rk4_mlp"]
+__all__ = ["FUSED_ACTIVATIONS", "rk4_mlp", "sweep_forward", "sweep_reverse"]
 
 
-def _forward(tape: MLPTape, y0: Tensor, times: Tensor, substeps: int):
-    """The RK4 sweep; returns ``([B, K, D] states, step sizes)``."""
+def sweep_forward(tape, y0: Tensor, times: Tensor, substeps: int):
+    """The RK4 sweep through ``tape`` (an :class:`MLPTape` or any tape with its interface:
+    ``tape(t, y, bias)``, ``w0t``, ``b0``); returns ``([B, K, D] states, step sizes)``."""
     per_sample = times.dim() == 2
     n_out = times.shape[-1]
     tk = times if per_sample else times.unsqueeze(0)  # [B or 1, K]
@@ -81,43 +82,49 @@ class _RK4MLP(torch.autograd.Function):
     def forward(ctx, y0, times, substeps, act, w0y, w0t, b0, *rest):
         tape = MLPTape(w0y, w0t, b0, rest, act, record=True)
         with torch.no_grad():
-            result, step_h = _forward(tape, y0, times, substeps)
+            result, step_h = sweep_forward(tape, y0, times, substeps)
         ctx.tape, ctx.step_h, ctx.substeps = tape, step_h, substeps
         return result
 
     @staticmethod
     def backward(ctx, grad_out):
-        # Reverse sweep of y' = y + h/6 (k1 + 2 k2 + 2 k3 + k4) with k1 = f(y),
-        # k2 = f(y + h/2 k1), k3 = f(y + h/2 k2), k4 = f(y + h k3); evaluation 4 s + i is
-        # stage i + 1 of step s.
-        tape, step_h = ctx.tape, ctx.step_h
-        tape.start_reverse()
-
-        def scaled(c: float, hh, g: Tensor) -> Tensor:
-            return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
-
-        def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
-            if isinstance(hh, float):
-                return torch.add(y, g, alpha=c * hh)
-            return torch.addcmul(y, hh, g, value=c)
-
-        ybar = grad_out[:, -1]
-        step = len(step_h)
-        for k in range(grad_out.shape[1] - 2, -1, -1):
-            for _ in range(ctx.substeps):
-                step -= 1
-                hh = step_h[step]
-                e0 = 4 * step
-                k1b = scaled(1.0 / 6.0, hh, ybar)
-                k2b = scaled(1.0 / 3.0, hh, ybar)
-                u4 = tape.vjp(k1b, e0 + 3)
-                u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
-                u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
-                u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
-                ybar = ybar + (u4 + u3) + (u2 + u1)
-            ybar = ybar + grad_out[:, k]
-        grad_w0y, grad_w0t, grad_b0, grads_rest = tape.weight_grads()
+        ybar = sweep_reverse(ctx.tape, ctx.step_h, ctx.substeps, grad_out)
+        grad_w0y, grad_w0t, grad_b0, grads_rest = ctx.tape.weight_grads()
         return (ybar, None, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
+
+
+def sweep_reverse(tape, step_h: list, substeps: int, grad_out: Tensor) -> Tensor:
+    """The reverse sweep of :func:`sweep_forward` for the output gradient ``grad_out: [B, K, D]``:
+    returns the gradient w.r.t. ``y0`` and leaves the weight gradients on ``tape``."""
+    # Reverse sweep of y' = y + h/6 (k1 + 2 k2 + 2 k3 + k4) with k1 = f(y),
+    # k2 = f(y + h/2 k1), k3 = f(y + h/2 k2), k4 = f(y + h k3); evaluation 4 s + i is
+    # stage i + 1 of step s.
+    tape.start_reverse()
+
+    def scaled(c: float, hh, g: Tensor) -> Tensor:
+        return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
+
+    def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
+        if isinstance(hh, float):
+            return torch.add(y, g, alpha=c * hh)
+        return torch.addcmul(y, hh, g, value=c)
+
+    ybar = grad_out[:, -1]
+    step = len(step_h)
+    for k in range(grad_out.shape[1] - 2, -1, -1):
+        for _ in range(substeps):
+            step -= 1
+            hh = step_h[step]
+            e0 = 4 * step
+            k1b = scaled(1.0 / 6.0, hh, ybar)
+            k2b = scaled(1.0 / 3.0, hh, ybar)
+            u4 = tape.vjp(k1b, e0 + 3)
+            u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
+            u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
+            u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
+            ybar = ybar + (u4 + u3) + (u2 + u1)
+        ybar = ybar + grad_out[:, k]
+    return ybar
 
 
 def rk4_mlp(
@@ -156,5 +163,5 @@ def rk4_mlp(
     if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
         with torch.no_grad():
             tape = MLPTape(w0y, w0t, b0, rest, act, record=False)
-            return _forward(tape, y0, times, int(substeps))[0]
+            return sweep_forward(tape, y0, times, int(substeps))[0]
     return _RK4MLP.apply(y0, times, int(substeps), act, w0y, w0t, b0, *rest)

@@ -248,10 +248,24 @@ class StableField:
         c = spec.cond_dim
         self._act = activation(spec.activation)
         self._w0 = fhat[0][:, c:].t()  # [n_state, H]
+        d = spec.dim
+        self._w0y = fhat[0][:, c : c + d]  # [H, D] and [H]: the state and time columns
+        self._w0t = fhat[0][:, c + d] if spec.clock else None
         self._b0 = fhat[1] if cond is None else fhat[1] + fhat[0][:, :c] @ cond
         self._rest = fhat[2:]
         self._icnn = _Icnn(spec, weights[n_fhat:], cond)
         self._g0 = _origin_value(self._icnn, spec)  # once per set of weights
+
+    def tape_tensors(self) -> tuple[tuple[Tensor | None, ...], int, int]:
+        """What the fused solvers (:mod:`~clfd_bench.learning.stable_fused`) work on:
+        ``((w0y, w0t, b0, *rest, *A_i, *c_i, *Ubar_i, g0), len(rest), number of ICNN
+        layers)``: the nominal field's first layer split into state ``[H, D]`` and time
+        ``[H]`` (None without the clock) columns with the embedding folded into ``b0``, its
+        later layers, and the ICNN's state columns, biases, passthroughs and ``g(0)``."""
+        icnn = self._icnn
+        tensors = (self._w0y, self._w0t, self._b0, *self._rest, *icnn.w, *icnn.b, *icnn.u,
+                   self._g0)
+        return tensors, len(self._rest), len(icnn.w)
 
     def _state(self, t: Tensor | float, y: Tensor) -> Tensor:
         if not self.spec.clock:

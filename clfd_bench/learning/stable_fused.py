@@ -1,0 +1,144 @@
+"""Fixed-step solvers through a stable NODE with a hand-written backward pass.
+
+``rk4`` and ``euler`` through a :class:`~clfd_bench.learning.stable.StableField`, as
+:func:`~clfd_bench.learning.odeint.integrate` computes them with autograd
+(discretise-then-optimise; ``tests/test_stable_fused.py`` compares the two to ~1e-12 in
+float64), but the forward sweep builds no graph: the field's evaluations are recorded on a
+:class:`~clfd_bench.learning.stable_tape.StableTape`, the backward pass is one reverse sweep,
+and each weight's gradient is one matrix product over all evaluations. The autograd graph
+holds one node per integration instead of ~60 per field evaluation, which is where an
+sNODE's training time went (its tensors are small: overhead, not arithmetic).
+
+Times may be shared by the batch (``[K]``) or per sample (``[B, K]``).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from clfd_bench.learning import rk4_fused
+from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS
+from clfd_bench.learning.stable import StableField
+from clfd_bench.learning.stable_tape import StableTape
+
+__all__ = ["FUSED_SOLVERS", "integrate_stable"]
+
+FUSED_SOLVERS = ("rk4", "euler")
+
+
+def _split(layout: tuple[int, int, bool], tensors: tuple[Tensor | None, ...]):
+    n_rest, k, _ = layout
+    w0y, w0t, b0 = tensors[:3]
+    rest = list(tensors[3 : 3 + n_rest])
+    i = 3 + n_rest
+    a, c, u = tensors[i : i + k], tensors[i + k : i + 2 * k], tensors[i + 2 * k : i + 3 * k - 1]
+    return (w0y, w0t, b0, rest), list(a), list(c), list(u), tensors[-1]
+
+
+def _tape(settings: tuple, layout: tuple[int, int, bool], tensors, record: bool) -> StableTape:
+    act, dim, clock, alpha, eps, rehu_d = settings
+    fhat, a, c, u, g0 = _split(layout, tensors)
+    return StableTape(fhat, a, c, u, g0, act, dim, clock, alpha, eps, rehu_d, record)
+
+
+def _euler_forward(tape: StableTape, y0: Tensor, times: Tensor, substeps: int):
+    """Explicit Euler over ``times`` (``[K]`` or ``[B, K]``) with ``substeps`` steps per
+    interval; returns ``([B, K, D] states, [(t, h)] per step)``."""
+    per_sample = times.dim() == 2
+    tk = times if per_sample else times.unsqueeze(0)
+    steps: list[tuple[float | Tensor, float | Tensor]] = []
+    y, out = y0, [y0]
+    for k in range(tk.shape[1] - 1):
+        if per_sample:
+            t0 = tk[:, k : k + 1]
+            h = (tk[:, k + 1 : k + 2] - t0) / substeps
+        else:
+            t0 = float(tk[0, k])
+            h = (float(tk[0, k + 1]) - t0) / substeps
+        for s in range(substeps):
+            t = t0 + s * h
+            f = tape(t, y)
+            y = torch.add(y, f, alpha=h) if isinstance(h, float) else torch.addcmul(y, h, f)
+            steps.append((t, h))
+        out.append(y)
+    return torch.stack(out, dim=1), steps
+
+
+def _euler_reverse(tape: StableTape, steps: list, substeps: int, grad_out: Tensor) -> Tensor:
+    """The reverse sweep of :func:`_euler_forward`: ``y' = y + h f(y)`` gives
+    ``ybar = ybar' + J^T (h ybar')``."""
+    tape.start_reverse()
+    ybar = grad_out[:, -1]
+    step = len(steps)
+    for k in range(grad_out.shape[1] - 2, -1, -1):
+        for _ in range(substeps):
+            step -= 1
+            h = steps[step][1]
+            scaled = torch.mul(ybar, h) if isinstance(h, float) else ybar * h
+            ybar = ybar + tape.vjp(scaled, step)
+        ybar = ybar + grad_out[:, k]
+    return ybar
+
+
+class _FusedStable(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, y0, times, method, substeps, settings, layout, *tensors):
+        tape = _tape(settings, layout, tensors, record=True)
+        with torch.no_grad():
+            if method == "rk4":
+                result, steps = rk4_fused.sweep_forward(tape, y0, times, substeps)
+            else:
+                result, steps = _euler_forward(tape, y0, times, substeps)
+        ctx.tape, ctx.steps, ctx.method, ctx.substeps = tape, steps, method, substeps
+        ctx.g0_shape = tensors[-1].shape
+        return result
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        tape = ctx.tape
+        if ctx.method == "rk4":
+            ybar = rk4_fused.sweep_reverse(tape, ctx.steps, ctx.substeps, grad_out)
+        else:
+            ybar = _euler_reverse(tape, ctx.steps, ctx.substeps, grad_out)
+        (w0y, w0t, b0, rest), da, dc, du, dg0 = tape.weight_grads()
+        grads = [w0y, w0t, b0, *rest, *da, *dc, *du, dg0.reshape(ctx.g0_shape)]
+        return (ybar, None, None, None, None, None, *grads)
+
+
+def integrate_stable(field: StableField, y0: Tensor, times: Tensor, method: str,
+                     substeps: int = 1) -> Tensor:
+    """Integrate the stable NODE ``field`` from ``y0`` over ``times`` (module docstring).
+
+    Args:
+        field: the field with its weights (gradients flow to them and to its embedding).
+        y0: ``[B, D]`` initial states.
+        times: ``[K]`` shared or ``[B, K]`` per-sample output times (increasing).
+        method: ``rk4`` or ``euler``.
+        substeps: steps per output interval.
+
+    Returns:
+        ``[B, K, D]`` states at the output times; differentiable w.r.t. ``y0`` and the weights.
+    """
+    if method not in FUSED_SOLVERS:
+        raise ValueError(f"fused stable solvers: {FUSED_SOLVERS}, not {method!r}")
+    spec = field.spec
+    if spec.activation not in FUSED_ACTIVATIONS:
+        raise ValueError(f"fused solvers support activations {FUSED_ACTIVATIONS}, "
+                         f"not {spec.activation!r}")
+    if times.shape[-1] < 2:
+        return y0.unsqueeze(1)
+    if times.dim() == 2 and times.shape[0] != y0.shape[0]:
+        raise ValueError(f"per-sample times [B, K] need B = {y0.shape[0]}, got {times.shape}")
+    times = times.to(y0.dtype)
+    tensors, n_rest, n_layers = field.tape_tensors()
+    settings = (spec.activation, spec.dim, spec.clock, spec.alpha, spec.eps, spec.rehu_d)
+    layout = (n_rest, n_layers, spec.clock)
+    if not (torch.is_grad_enabled()
+            and any(t is not None and t.requires_grad for t in (y0, *tensors))):
+        with torch.no_grad():
+            tape = _tape(settings, layout, tensors, record=False)
+            if method == "rk4":
+                return rk4_fused.sweep_forward(tape, y0, times, int(substeps))[0]
+            return _euler_forward(tape, y0, times, int(substeps))[0]
+    return _FusedStable.apply(y0, times, method, int(substeps), settings, layout, *tensors)
