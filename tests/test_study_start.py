@@ -145,3 +145,69 @@ def test_missing_run_dir_says_what_to_run(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "not a trained run" in err and "clfd-bench train" in err
     assert main(["study", "start", "--methods", "nosuch", "--out", str(tmp_path / "o")]) == 2
+
+
+# --------------------------------------------------------------------------- LASA
+def test_sample_disc_is_uniform_in_area():
+    pts = sr.sample_ball(np.random.default_rng(0), 40_000, R, centre=np.array([1.0, 2.0]))
+    r = np.linalg.norm(pts - [1.0, 2.0], axis=1)
+    assert pts.shape == (40_000, 2) and r.max() <= R
+    # Uniform in area: P(r <= s) = (s/R)^2, mean radius 2/3 R.
+    assert abs(r.mean() - 2 / 3 * R) < 0.005 * R
+    assert abs(np.mean(r <= R / 2) - 1 / 4) < 0.01
+    # The 3-D default draws the same starts as before the dimension became a parameter.
+    np.testing.assert_array_equal(
+        sr.sample_ball(np.random.default_rng(3), 5, R, centre=np.zeros(3)),
+        sr.sample_ball(np.random.default_rng(3), 5, R))
+
+
+def test_planar_end_deltas_in_metres_and_horizon_times():
+    scale = 0.003  # m per LASA unit
+    preds = np.zeros((2, 4, 2))
+    preds[0, -1] = [3.0, 4.0]          # 5 units = 1.5 cm from the goal (0, 0)
+    preds[1, 2:] = np.inf
+    d = sr.end_deltas(preds, np.zeros(2), pos_dim=2, scale=scale)
+    assert d[0] == pytest.approx(0.015) and math.isinf(d[1])
+    assert sr.diverged(preds[1], 2, scale) and not sr.diverged(preds[0], 2, scale)
+    far = preds[0].copy()
+    far[1] = [4000.0, 0.0]             # 12 m on the table
+    assert sr.diverged(far, 2, scale)
+    t = np.arange(5) * 0.25
+    np.testing.assert_allclose(sr.horizon_times(t, 3.0), np.arange(13) * 0.25)
+    assert sr.horizon_times(t, 1.0) is not None and len(sr.horizon_times(t, 1.0)) == 5
+    with pytest.raises(ValueError, match="horizon"):
+        sr.StudyConfig(horizon=0.5)
+
+
+def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys):
+    """Two runs on LASA's first shape, NODE^T and sNODE, labelled apart; end Δ in metres on
+    the table from starts in the disc; the horizon lengthens the prediction; execution is
+    refused on LASA with what to do."""
+    from clfd_bench.cli.main import main
+    from clfd_bench.data import load_dataset
+    from clfd_bench.harness.protocol import load_learner
+    from clfd_bench.leaderboard.grid import RunSpec
+
+    out = tmp_path / "lasa"
+    base = ["study", "start", "--dataset", "lasa", "--methods", "hn", "--nodes", "t,s",
+            "--profile", "smoke", "--tasks", "1", "--starts", "4", "--out", str(out)]
+    assert main(base) == 2  # executing is refused, nothing studied
+    err = capsys.readouterr().err
+    assert "--no-exec" in err and not (out / "runs").exists()  # refused before training
+    assert main([*base, "--no-exec", "--horizon", "3"]) == 0
+    records = json.loads((out / "records.json").read_text())
+    assert {r["method"] for r in records} == {"hn", "hn (sNODE)"}
+    assert all(r["success"] is None for r in records)
+    task = load_dataset("lasa").tasks[0]
+    ref = next(r for r in records if r["method"] == "hn (sNODE)" and r["start_index"] == -1)
+    starts = [r for r in records if r["start_index"] >= 0]
+    assert all(0 < r["start_delta_m"] <= R + 1e-9 for r in starts)
+    assert all(len(r["start"]) == 2 for r in records)
+    run_dir = RunSpec("lasa", "hn", "smoke", 0, node="s", tasks=1, sim=False).run_dir(out)
+    learner, _ = load_learner(run_dir)
+    times = sr.horizon_times(task.times, 3.0)
+    assert len(times) == 3 * (len(task.times) - 1) + 1
+    pred = learner.predict(0, task.demos[ref["demo"], :1], times)
+    expected = float(np.linalg.norm(pred[0, -1] - task.goal)) * task.sim_scale
+    assert ref["end_delta_m"] == pytest.approx(expected, rel=1e-5)
+    assert (out / "start_overview.png").stat().st_size > 0

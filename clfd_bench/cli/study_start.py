@@ -1,4 +1,5 @@
-"""``clfd-bench study start``: robustness of trained RoboTasks runs to the starting position."""
+"""``clfd-bench study start``: robustness of trained runs to the starting position (RoboTasks
+with execution in simulation, LASA at trajectory level)."""
 
 from __future__ import annotations
 
@@ -12,15 +13,14 @@ __all__ = ["register"]
 
 
 def _labelled_runs(run_dirs: list[str]) -> dict[str, Path]:
-    """``{label: Path}``; label = the run's method (``sg``, ``sg#2`` for a second SG run)."""
-    from clfd_bench.runs import RunDir
-    from clfd_bench.studies.start_robustness import run_tasks
+    """``{label: Path}``; label = the run's method and NODE variant (``sg``, ``hn (sNODE)``;
+    ``sg#2`` for a second SG run)."""
+    from clfd_bench.studies.start_robustness import run_label
 
     runs: dict[str, Path] = {}
     for d in run_dirs:
         path = Path(d)
-        run_tasks(path)  # raises ValueError saying what is wrong and what to run
-        label = RunDir(path).load_results()["config"]["method"]
+        label = run_label(path)  # raises ValueError saying what is wrong and what to run
         base, n = label, 1
         while label in runs:
             n += 1
@@ -30,27 +30,36 @@ def _labelled_runs(run_dirs: list[str]) -> dict[str, Path]:
 
 
 def _train(args: argparse.Namespace, out: Path) -> dict[str, Path]:
-    """Train (or resume, or skip when done) the ``--methods`` runs in ``out/runs``."""
+    """Train (or resume, or skip when done) the ``--methods`` x ``--nodes`` runs in
+    ``out/runs``; ``{label: run_dir}``."""
     from clfd_bench.leaderboard.grid import RunSpec
     from clfd_bench.leaderboard.runner import run_specs
-    from clfd_bench.studies.start_robustness import DATASET
+    from clfd_bench.studies.start_robustness import run_label
 
-    specs = [RunSpec(DATASET, m, args.profile, args.seed, tasks=args.tasks, sim=False)
-             for m in args.methods]
+    specs = [RunSpec(args.dataset, m, args.profile, args.seed, node=node, tasks=args.tasks,
+                     sim=False) for node in args.nodes for m in args.methods]
     grid = run_specs(specs, out, desc="train for start study")
     bad = [r for r in grid.records if r.status != "done"]
     if bad:
         raise ValueError("training failed for " + ", ".join(
             f"{r.spec.name} ({r.error or r.status}; log in {r.spec.run_dir(out)})" for r in bad))
-    return {s.method: s.run_dir(out) for s in specs}
+    return {run_label(s.run_dir(out)): s.run_dir(out) for s in specs}
 
 
 def _run(args: argparse.Namespace) -> int:
     import time
 
     from clfd_bench.methods import get_method_class
-    from clfd_bench.studies.start_robustness import StudyConfig, run_start_study, study_tasks
+    from clfd_bench.node_variants import NODE_VARIANTS
+    from clfd_bench.studies.start_robustness import (
+        STUDY_DATASETS,
+        StudyConfig,
+        run_start_study,
+        study_dataset,
+        study_tasks,
+    )
     from clfd_bench.studies.start_robustness_plots import (
+        plot_overview,
         plot_study,
         summarize,
         write_records,
@@ -66,14 +75,31 @@ def _run(args: argparse.Namespace) -> int:
     try:
         for method in args.methods:
             get_method_class(method)
+        if args.dataset not in STUDY_DATASETS:
+            raise ValueError(f"--dataset {args.dataset!r}: the start study runs on "
+                             f"{', '.join(STUDY_DATASETS)}")
+        bad = [n for n in args.nodes if n not in NODE_VARIANTS]
+        if bad:
+            raise ValueError(f"--nodes {bad[0]!r}: valid {', '.join(NODE_VARIANTS)}")
         cfg = StudyConfig(seed=args.seed, starts=args.starts, radius=args.radius,
-                          approach_speed=args.approach_speed, execute=not args.no_exec)
+                          approach_speed=args.approach_speed, execute=not args.no_exec,
+                          horizon=args.horizon)
         runs = _labelled_runs(args.run or [])
+        # Checked before anything is trained: one dataset, executed only where it means
+        # something.
+        dataset = study_dataset(runs) if runs else args.dataset
+        if args.methods and dataset != args.dataset:
+            raise ValueError(f"the --run dirs are {dataset} runs and --dataset is "
+                             f"{args.dataset}; study one dataset at a time")
+        if cfg.execute and dataset != "robotasks":
+            raise ValueError(f"{dataset} runs are not executed in this study (the writing test "
+                             "compares with the demo's path, which another start does not "
+                             "reproduce); add --no-exec: the end Δ is the measure there")
         for label, path in (_train(args, out) if args.methods else {}).items():
             runs[label if label not in runs else f"{label}#trained"] = path
         tasks = study_tasks(runs)
         if not tasks:
-            raise ValueError("the runs have no learned RoboTasks task in common")
+            raise ValueError(f"the runs have no learned {dataset} task in common")
     except (KeyError, ValueError) as exc:
         print(exc.args[0], file=sys.stderr)
         return 2
@@ -82,7 +108,8 @@ def _run(args: argparse.Namespace) -> int:
     rows = summarize(records, methods, tasks)
     files = write_records(records, out) + write_summary(rows, out)
     fig = plot_study(records, methods, tasks, out / "start_robustness.png")
-    files += [fig] if fig else []
+    overview = plot_overview(records, methods, tasks, out / "start_overview.png")
+    files += [f for f in (fig, overview) if f]
     for path in files:
         print(f"[study start] wrote {path}")
     print((out / "summary.md").read_text())
@@ -93,9 +120,11 @@ def _run(args: argparse.Namespace) -> int:
                      f"Large {r['large_frac']:.0%}{succ}")
     how = (f"executed in simulation after an approach at {cfg.approach_speed:g} m/s"
            if cfg.execute else "not executed")
-    print(f"[study start] {len(runs)} run(s) x {len(tasks)} task(s) x {cfg.starts} starts drawn "
-          f"in a {cfg.radius * 100:g} cm ball around a seeded demo's start (seed {cfg.seed}), "
-          f"{how}; " + "; ".join(parts)
+    horizon = "" if cfg.horizon == 1.0 else f", predicted over {cfg.horizon:g}x its duration"
+    shape = "ball" if dataset == "robotasks" else "disc"
+    print(f"[study start] {dataset}: {len(runs)} run(s) x {len(tasks)} task(s) x {cfg.starts} "
+          f"starts drawn in a {cfg.radius * 100:g} cm {shape} around a seeded demo's start (seed "
+          f"{cfg.seed}){horizon}, {how}; " + "; ".join(parts)
           + f". Done in {time.perf_counter() - t0:.0f} s (finished work is cached in "
           f"{out / 'cache'}).")
     return 0
@@ -105,15 +134,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``study start`` subcommand."""
     p = subparsers.add_parser(
         "start",
-        help="robustness to the starting position (RoboTasks, with execution in simulation)",
-        description="Perturb the start of one seeded demo per RoboTasks task (starts uniform in "
-        "a ball), predict with each trained run, report end-position error to the goal and "
-        "simulated execution success; tables and the paper-like figure in --out. Resumable.",
+        help="robustness to the starting position (RoboTasks with execution in simulation, "
+             "LASA)",
+        description="Perturb the start of one seeded demo per task (starts uniform in a ball; "
+        "a disc on LASA), predict with each trained run, report end-position error to the goal "
+        "and (RoboTasks) simulated execution success; tables and the paper-like figure in "
+        "--out. Resumable.",
     )
     p.add_argument("--run", action="append", metavar="DIR",
-                   help="a trained RoboTasks run dir (repeatable; label = its method)")
+                   help="a trained RoboTasks or LASA run dir (repeatable; label = its method "
+                        "and NODE variant)")
     p.add_argument("--methods", type=_names, default=[],
-                   help="comma list of methods to train here (RoboTasks, --no-sim) and study")
+                   help="comma list of methods to train here (--no-sim) and study")
+    p.add_argument("--dataset", default="robotasks",
+                   help="dataset of the runs trained here: robotasks (default) or lasa")
+    p.add_argument("--nodes", type=_names, default=["t"],
+                   help="NODE variants of the runs trained here, comma list of t, i, s "
+                        "(default t)")
     p.add_argument("--profile", default="fast", help="profile of the runs trained here")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the runs trained here, the demo choice and the starts")
@@ -123,6 +160,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--radius", type=float, default=0.20, help="ball radius, metres")
     p.add_argument("--approach-speed", type=float, default=0.1,
                    help="mean speed (m/s) of the move from the demo's start to a perturbed start")
-    p.add_argument("--no-exec", action="store_true", help="skip the simulated execution")
+    p.add_argument("--horizon", type=float, default=1.0,
+                   help="predict over this many times the demo's duration (default 1, the "
+                        "paper's; more shows whether predictions settle at the goal)")
+    p.add_argument("--no-exec", action="store_true",
+                   help="skip the simulated execution (required on LASA)")
     p.add_argument("--out", required=True, help="output directory (runs, cache, tables, figure)")
     p.set_defaults(func=_run)

@@ -1,13 +1,21 @@
 """Robustness to the starting position (the paper's appendix study), with execution in simulation.
 
-For each RoboTasks task one demonstration is chosen (seeded); ``n`` start positions are drawn
-uniformly from the *volume* of a ball of radius ``R`` around that demo's start position (the
-same starts for every method); the orientation start is the demo's start quaternion. Every
-trained run predicts, with the demo's time steps, from each start and from the demo's own start
-(the reference, start Δ = 0). Per start we record the start Δ (m), the end-position Δ to the
-task's goal position (m; a prediction that is not finite counts as infinitely far, i.e.
-"Large": end Δ > :data:`LARGE_M`) and whether the prediction succeeds when executed in the
-task's simulated scene.
+For each task one demonstration is chosen (seeded); ``n`` start positions are drawn uniformly
+from the *volume* of a ball of radius ``R`` around that demo's start position (the same starts
+for every method); the orientation start is the demo's start quaternion. Every trained run
+predicts, with the demo's time steps (``horizon`` times as many with the same step: 1 is the
+paper's), from each start and from the demo's own start (the reference, start Δ = 0). Per
+start we record the start Δ (m), the end-position Δ to the task's goal position (m; a
+prediction that is not finite counts as infinitely far, i.e. "Large": end Δ > :data:`LARGE_M`)
+and whether the prediction succeeds when executed in the task's simulated scene.
+
+**Datasets** (:data:`STUDY_DATASETS`). RoboTasks (the paper's study): 3-D positions in metres,
+executed. LASA: the planar shapes as laid on the simulated table (``Task.sim_scale`` metres
+per LASA unit, 1 cm = 3.33 units), starts uniform in the *disc* of radius ``R`` (metres,
+converted to units), distances reported in metres like RoboTasks'. LASA runs are not executed
+(``execute=False`` is required): the writing envs' success test compares the written path
+with the demo's, which a prediction from another start does not reproduce by design, so only
+the end Δ (does the skill still reach its goal?) is meaningful there.
 
 **Execution from a perturbed start.** The scene (props, grasp) is the chosen demo's: the robot
 starts at that demo's start configuration, holding the prop as in the demo (this is what the
@@ -43,8 +51,9 @@ from clfd_bench.io import atomic_write_json
 from clfd_bench.runs import RunDir, RunFileError
 
 __all__ = [
-    "BINS_CM", "DIVERGED_M", "LARGE_M", "StartRecord", "StudyConfig", "approach_path",
-    "choose_demo", "draw_starts", "end_deltas", "execute", "run_start_study", "sample_ball",
+    "BINS_CM", "DIVERGED_M", "LARGE_M", "STUDY_DATASETS", "StartRecord", "StudyConfig",
+    "approach_path", "choose_demo", "draw_starts", "end_deltas", "execute", "horizon_times",
+    "run_label", "run_start_study", "sample_ball", "study_dataset",
 ]
 
 #: Start-Δ bins of the summary and the figure, centimetres.
@@ -56,6 +65,8 @@ DIVERGED_M = 10.0
 #: Reference record's start index (the prediction from the demo's own start, start Δ = 0).
 REFERENCE = -1
 DATASET = "robotasks"
+#: Datasets the study runs on: dataset -> position dimensions (the rest is orientation).
+STUDY_DATASETS = {"robotasks": 3, "lasa": 2}
 _CACHE_VERSION = 2
 #: A prediction's first position this close to the demo's start (float32 rounding) needs no
 #: approach, metres.
@@ -73,6 +84,8 @@ class StudyConfig:
         approach_speed: mean speed of the move from the demo's start pose to a prediction's
             first pose before it is executed, m/s.
         execute: run the rollouts (False: only the trajectory-level numbers).
+        horizon: prediction length as a multiple of the demo's duration (same time step);
+            1 is the paper's study, more asks whether predictions settle at the goal.
     """
 
     seed: int = 0
@@ -80,6 +93,7 @@ class StudyConfig:
     radius: float = 0.20
     approach_speed: float = 0.1
     execute: bool = True
+    horizon: float = 1.0
 
     def __post_init__(self) -> None:
         if self.starts < 1:
@@ -88,6 +102,9 @@ class StudyConfig:
             raise ValueError(f"radius must be > 0 (metres), got {self.radius}")
         if not self.approach_speed > 0:
             raise ValueError(f"approach_speed must be > 0 (m/s), got {self.approach_speed}")
+        if not 1.0 <= self.horizon <= 100.0:
+            raise ValueError(f"horizon must be in [1, 100] (times the demo's duration), got "
+                             f"{self.horizon}")
 
 
 @dataclass
@@ -132,21 +149,24 @@ class StartRecord:
 
 # --------------------------------------------------------------------------- sampling
 def sample_ball(rng: np.random.Generator, n: int, radius: float,
-                centre: np.ndarray | None = None) -> np.ndarray:
-    """``n`` points uniform in the volume of a ball -> ``[n, 3]``.
+                centre: np.ndarray | None = None, dim: int = 3) -> np.ndarray:
+    """``n`` points uniform in the volume of a ball in ``dim`` dimensions -> ``[n, dim]``.
 
-    Direction: a normalised Gaussian vector; distance ``radius * u**(1/3)`` with u ~ U(0, 1)
-    (the volume inside distance r grows as r³), so the mean distance is 3/4 of the radius.
+    Direction: a normalised Gaussian vector; distance ``radius * u**(1/dim)`` with u ~ U(0, 1)
+    (the volume inside distance r grows as r^dim), so the mean distance is ``dim / (dim + 1)``
+    of the radius (3/4 in a ball, 2/3 in a disc). ``centre`` (if given) sets ``dim``.
     """
-    direction = rng.standard_normal((n, 3))
+    if centre is not None:
+        dim = len(centre)
+    direction = rng.standard_normal((n, dim))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    r = radius * rng.random(n) ** (1.0 / 3.0)
-    centre = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
+    r = radius * rng.random(n) ** (1.0 / dim)
+    centre = np.zeros(dim) if centre is None else np.asarray(centre, dtype=float)
     return centre + direction * r[:, None]
 
 
 def draw_starts(seed: int, task: str, centre: np.ndarray, n: int, radius: float) -> np.ndarray:
-    """The study's start positions for ``task`` -> ``[n, 3]`` (metres).
+    """The study's start positions for ``task`` -> ``[n, len(centre)]`` (``centre``'s units).
 
     Start i comes from its own generator (seeded by seed, the task's name and i), so the first
     starts do not change when ``n`` grows and every method gets the same starts."""
@@ -160,26 +180,40 @@ def choose_demo(seed: int, task: str, num_demos: int) -> int:
     return int(np.random.default_rng([int(seed), *task.encode(), 0]).integers(num_demos))
 
 
-def end_deltas(predictions: np.ndarray, goal: np.ndarray) -> np.ndarray:
+def end_deltas(predictions: np.ndarray, goal: np.ndarray, pos_dim: int = 3,
+               scale: float = 1.0) -> np.ndarray:
     """Distance of each prediction's last position to the goal position.
 
     Args:
-        predictions: ``[N, T, D]`` (D >= 3; positions first, metres).
-        goal: ``[D]`` or ``[3]`` goal (positions first).
+        predictions: ``[N, T, D]`` (D >= pos_dim; positions first).
+        goal: ``[D]`` or ``[pos_dim]`` goal (positions first).
+        pos_dim: position dimensions (3 for RoboTasks, 2 for LASA).
+        scale: metres per data unit (1 for RoboTasks, ``Task.sim_scale`` for LASA).
 
     Returns:
         ``[N]`` metres; ``inf`` where the last position is not finite (diverged).
     """
-    last = np.asarray(predictions, dtype=float)[:, -1, :3]
+    last = np.asarray(predictions, dtype=float)[:, -1, :pos_dim]
     with np.errstate(over="ignore", invalid="ignore"):
-        d = np.linalg.norm(last - np.asarray(goal, dtype=float)[:3], axis=1)
+        d = np.linalg.norm(last - np.asarray(goal, dtype=float)[:pos_dim], axis=1) * scale
     return np.where(np.isfinite(d), d, np.inf)
 
 
-def diverged(prediction: np.ndarray) -> bool:
-    """True when ``prediction`` ``[T, 7]`` is not finite or leaves a ``DIVERGED_M`` box."""
+def diverged(prediction: np.ndarray, pos_dim: int = 3, scale: float = 1.0) -> bool:
+    """True when ``prediction`` ``[T, D]`` is not finite or leaves a ``DIVERGED_M`` box
+    (positions first, ``scale`` metres per unit)."""
     p = np.asarray(prediction, dtype=float)
-    return bool(not np.isfinite(p).all() or np.abs(p[:, :3]).max() > DIVERGED_M)
+    return bool(not np.isfinite(p).all() or np.abs(p[:, :pos_dim]).max() * scale > DIVERGED_M)
+
+
+def horizon_times(times: np.ndarray, horizon: float) -> np.ndarray:
+    """``times`` ``[T]`` continued with their step to ``horizon`` times the duration:
+    ``[round((T - 1) * horizon) + 1]`` (``times`` itself for 1)."""
+    times = np.asarray(times, dtype=float)
+    if horizon == 1.0:
+        return times
+    n = int(round((len(times) - 1) * horizon)) + 1
+    return times[0] + (times[1] - times[0]) * np.arange(n)
 
 
 # --------------------------------------------------------------------------- execution
@@ -252,10 +286,13 @@ def execute(env, demo: int, demo_start: np.ndarray, prediction: np.ndarray,
 
 # --------------------------------------------------------------------------- the study
 def _cache_key(run_dir: Path, task: str, demo: int, cfg: StudyConfig) -> dict[str, Any]:
-    return {"version": _CACHE_VERSION, "run": str(run_dir.resolve()),
-            "checkpoint_sha256": RunDir(run_dir).checkpoint_sha256(), "task": task,
-            "demo": demo, "seed": cfg.seed, "radius": cfg.radius,
-            "approach_speed": cfg.approach_speed}
+    key = {"version": _CACHE_VERSION, "run": str(run_dir.resolve()),
+           "checkpoint_sha256": RunDir(run_dir).checkpoint_sha256(), "task": task,
+           "demo": demo, "seed": cfg.seed, "radius": cfg.radius,
+           "approach_speed": cfg.approach_speed}
+    if cfg.horizon != 1.0:  # absent at the paper's 1: caches made before it stay valid
+        key["horizon"] = cfg.horizon
+    return key
 
 
 def _load_cache(path: Path, key: dict[str, Any]) -> dict[int, StartRecord]:
@@ -273,13 +310,38 @@ def _save_cache(path: Path, key: dict[str, Any], cached: dict[int, StartRecord])
                                                      for i, r in sorted(cached.items())}})
 
 
+def study_dataset(runs: dict[str, Path]) -> str:
+    """The one dataset every run was trained on (raises ValueError naming the mix)."""
+    datasets = {label: _run_config(d)["dataset"] for label, d in runs.items()}
+    if len(set(datasets.values())) > 1:
+        raise ValueError("the runs were trained on different datasets ("
+                         + ", ".join(f"{k}: {v}" for k, v in datasets.items())
+                         + "); study one dataset at a time")
+    return next(iter(datasets.values()), DATASET)
+
+
 def study_tasks(runs: dict[str, Path]) -> list[str]:
-    """The RoboTasks tasks every run learned, in the dataset's order 0."""
+    """The tasks every run learned, in the dataset's order 0."""
     from clfd_bench.data import load_dataset
 
-    names = list(load_dataset(DATASET).task_names)
+    names = list(load_dataset(study_dataset(runs)).task_names)
     learned = [set(run_tasks(d)) for d in runs.values()]
     return [t for t in names if all(t in s for s in learned)]
+
+
+def run_label(run_dir: Path) -> str:
+    """How the study names a run: its method, with the NODE variant unless NODE^T
+    (``hn``, ``hn (sNODE)``, ``sg (NODE^I)``)."""
+    from clfd_bench.node_variants import node_label
+
+    config = _run_config(run_dir)
+    node = str(config.get("node") or "t")
+    return str(config["method"]) + ("" if node == "t" else f" ({node_label(node)})")
+
+
+def _run_config(run_dir: Path) -> dict[str, Any]:
+    run_tasks(run_dir)  # raises ValueError saying what is wrong
+    return RunDir(run_dir).read_results()["config"]
 
 
 def run_tasks(run_dir: Path) -> list[str]:
@@ -294,9 +356,9 @@ def run_tasks(run_dir: Path) -> list[str]:
                          f"it with `clfd-bench train --method M --dataset {DATASET} --profile "
                          f"fast --no-sim --out {run_dir}` or pass --methods to train here")
     dataset = results["config"]["dataset"]
-    if dataset != DATASET:
-        raise ValueError(f"{run_dir} was trained on {dataset!r}; the start study needs "
-                         f"{DATASET!r} runs (7-D poses with a simulated scene)")
+    if dataset not in STUDY_DATASETS:
+        raise ValueError(f"{run_dir} was trained on {dataset!r}; the start study needs runs on "
+                         f"{' or '.join(STUDY_DATASETS)}")
     done = int(results.get("tasks_done", len(results.get("train_time_s", []))))
     return list(results["tasks"])[:done]
 
@@ -306,9 +368,10 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
     """Run the study for every labelled run and task; returns every record (cached ones too).
 
     Args:
-        runs: ``{label: run_dir}`` of trained RoboTasks runs (label: usually the method).
+        runs: ``{label: run_dir}`` of trained runs on one of :data:`STUDY_DATASETS`
+            (label: usually :func:`run_label`).
         out: output directory (the cache lives in ``out/cache``).
-        cfg: the study's settings.
+        cfg: the study's settings (LASA: ``execute=False``, see the module docstring).
         tasks: task names (default: those every run learned).
     """
     from clfd_bench.data import load_dataset
@@ -317,11 +380,17 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
     from clfd_bench.harness.protocol import load_learner
     from clfd_bench.progress import progress
 
-    ds = load_dataset(DATASET)
+    dataset = study_dataset(runs)
+    if cfg.execute and dataset != DATASET:
+        raise ValueError(f"{dataset} runs are not executed in this study (the writing test "
+                         "compares with the demo's path, which another start does not "
+                         "reproduce); use --no-exec: the end Δ is the measure there")
+    pos_dim = STUDY_DATASETS[dataset]
+    ds = load_dataset(dataset)
     by_name = {t.name: t for t in ds.tasks}
     tasks = study_tasks(runs) if tasks is None else list(tasks)
     if not tasks:
-        raise ValueError("the runs have no learned RoboTasks task in common")
+        raise ValueError(f"the runs have no learned {dataset} task in common")
     records: list[StartRecord] = []
     total = len(runs) * len(tasks) * (cfg.starts + 1)
     bar = progress(total=total, desc="start study")
@@ -332,20 +401,24 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
             learner, _ = load_learner(run_dir)
             for name in tasks:
                 task = by_name[name]
+                scale = 1.0 if dataset == DATASET else float(task.sim_scale)  # m per unit
                 demo = choose_demo(cfg.seed, name, task.demos.shape[0])
                 demo_start = task.demos[demo, 0]
-                positions = draw_starts(cfg.seed, name, demo_start[:3], cfg.starts, cfg.radius)
+                positions = draw_starts(cfg.seed, name, demo_start[:pos_dim], cfg.starts,
+                                        cfg.radius / scale)
                 starts = np.concatenate([demo_start[None], np.concatenate(
-                    [positions, np.repeat(demo_start[None, 3:], cfg.starts, axis=0)], axis=1)])
+                    [positions, np.repeat(demo_start[None, pos_dim:], cfg.starts, axis=0)],
+                    axis=1)])
                 goals = learner.demo_goals(task)
                 goals = None if goals is None else np.repeat(goals[demo][None], len(starts), 0)
+                times = horizon_times(task.times, cfg.horizon)
                 with np.errstate(all="ignore"):
-                    preds = learner.predict(order.index(name), starts, task.times, goals)
-                ends = end_deltas(preds, task.goal)
+                    preds = learner.predict(order.index(name), starts, times, goals)
+                ends = end_deltas(preds, task.goal, pos_dim, scale)
                 cache_path = out / "cache" / label / f"{name}.json"
                 key = _cache_key(run_dir, name, demo, cfg)
                 cached = _load_cache(cache_path, key)
-                env = get_env(env_id_for(DATASET, name)) if cfg.execute else None
+                env = get_env(env_id_for(dataset, name)) if cfg.execute else None
                 for k in range(len(starts)):
                     index = REFERENCE if k == 0 else k - 1
                     rec = cached.get(index)
@@ -353,7 +426,8 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
                             cfg.execute and rec.success is None):
                         rec = StartRecord(
                             method=label, task=name, demo=demo, start_index=index,
-                            start_delta_m=float(np.linalg.norm(starts[k, :3] - demo_start[:3])),
+                            start_delta_m=float(np.linalg.norm(
+                                starts[k, :pos_dim] - demo_start[:pos_dim]) * scale),
                             end_delta_m=float(ends[k]), large=bool(ends[k] > LARGE_M),
                             start=[float(v) for v in starts[k]])
                         if cfg.execute:

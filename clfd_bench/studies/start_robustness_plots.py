@@ -16,7 +16,8 @@ import numpy as np
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.studies.start_robustness import BINS_CM, LARGE_M, REFERENCE, StartRecord
 
-__all__ = ["bin_labels", "plot_study", "summarize", "write_records", "write_summary"]
+__all__ = ["bin_labels", "plot_overview", "plot_study", "summarize", "write_records",
+           "write_summary"]
 
 _LARGE_CM = LARGE_M * 100.0
 _BAND_TOP_CM = _LARGE_CM * 1.2  # the "Large" band spans 100..120 cm in the plots
@@ -230,6 +231,50 @@ def plot_study(records: list[StartRecord], methods: list[str], tasks: list[str],
         ax_d.set_xlabel("start Δ [cm]")
         ax_d.set_ylim(0, 1.05)
         ax_d.set_ylabel("success rate")
+    fig.tight_layout()
+    out = _save(fig, Path(path))
+    plt.close(fig)
+    return out
+
+
+def plot_overview(records: list[StartRecord], methods: list[str], tasks: list[str],
+                  path: Path, goal_cm: float = 1.0) -> Path | None:
+    """Every task in one panel: per task and method, the end Δ of all starts (box, log
+    scale; diverged and Large ones at the top, in the grey band), a dashed line at
+    ``goal_cm``, and per method the share of starts that end within it (legend)."""
+    from clfd_bench.leaderboard.plots import _plt, _save
+
+    if not records or not tasks:
+        return None
+    plt = _plt()
+    width = 0.8 / max(1, len(methods))
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.45 * len(tasks) * max(1, len(methods)) + 2), 4.2))
+    top = _BAND_TOP_CM
+    for k, m in enumerate(methods):
+        sample = [r for r in records if r.method == m and r.start_index != REFERENCE
+                  and r.task in tasks]
+        if not sample:
+            continue
+        within = np.mean([r.end_delta_m * 100.0 <= goal_cm for r in sample])
+        data, pos = [], []
+        for i, task in enumerate(tasks):
+            cm = np.array([r.end_delta_m for r in sample if r.task == task]) * 100.0
+            if len(cm):
+                data.append(np.clip(np.where(np.isfinite(cm), cm, top), 1e-3, top))
+                pos.append(i + (k - (len(methods) - 1) / 2) * width)
+        bp = ax.boxplot(data, positions=pos, widths=width * 0.85, patch_artist=True,
+                        showfliers=True, flierprops={"ms": 2})
+        for patch in bp["boxes"]:
+            patch.set_facecolor(f"C{k}")
+            patch.set_alpha(0.6)
+        bp["boxes"][0].set_label(f"{m}: {within:.0%} of starts end within {goal_cm:g} cm")
+    ax.set_yscale("log")
+    ax.axhline(goal_cm, color="k", ls="--", lw=0.8)
+    ax.axhspan(_LARGE_CM, top, color="0.85", zorder=0)
+    ax.set_ylim(1e-3, top)
+    ax.set_xticks(range(len(tasks)), tasks, rotation=60, ha="right", fontsize=7)
+    ax.set_ylabel("end Δ to the goal [cm]")
+    ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     out = _save(fig, Path(path))
     plt.close(fig)
