@@ -25,6 +25,7 @@ STUDY_COMMANDS: tuple[str, ...] = (
     "study_order",
     "study_sensitivity",
     "study_timing",
+    "study_tasktime",
 )
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench study <name>`` subcommand."""
 
@@ -53,7 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
         for name in BENCH_COMMANDS:
             importlib.import_module(f"clfd_bench.cli.{name}").register(bench_sub)
     study = sub.add_parser(
-        "study", help="the paper's studies: start robustness, task order, sensitivity, timing"
+        "study", help="the paper's studies: start robustness, task order, sensitivity, timing, "
+        "time per task"
     )
     study_sub = study.add_subparsers(dest="study_command", metavar="STUDY", required=True,
                                      parser_class=_Parser)

@@ -41,8 +41,9 @@ class RunSpec:
             (hyperparameter studies); part of the run's name so variants never collide.
         config_file: the method's hyperparameter file (``--config``; None: its default, a
             plugin's own or ``baselines/<name>.toml``), stored absolute.
-        entry: the named entry (:mod:`clfd_bench.leaderboard.entries`) this run belongs to,
-            whose node and settings it carries; None for a bare method.
+        entry: the row the run counts in when it is not its bare method's: a named entry
+            (:mod:`clfd_bench.leaderboard.entries`, whose node and settings it carries) or a
+            study's configuration label; None: its method.
     """
 
     dataset: str

@@ -1,0 +1,76 @@
+"""``clfd-bench study tasktime``: training time per task of the hypernetwork regularisers."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+
+__all__ = ["register"]
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from clfd_bench.data import DATASETS
+    from clfd_bench.harness.validate import USER_ERRORS
+    from clfd_bench.leaderboard.runner import run_specs
+    from clfd_bench.learning.hnet_reg import REG_MODES
+    from clfd_bench.studies.task_time import study_specs, summarize, write_outputs
+
+    if args.dataset not in DATASETS:
+        print(f"unknown dataset {args.dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+        return 2
+    bad = [r for r in args.regs if r not in REG_MODES]
+    if bad or not args.regs or not args.methods or not args.seeds:
+        print(f"--regs takes {', '.join(REG_MODES)} (got {', '.join(args.regs) or 'none'}); "
+              "--methods and --seeds need at least one value", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    specs = study_specs(args.dataset, args.methods, args.regs, args.profile, args.seeds,
+                        args.node, args.tasks)
+    try:
+        grid = run_specs(specs, out, args.executor, args.workers, args.address,
+                         desc="task-time study")
+    except USER_ERRORS as exc:  # checked before anything is trained
+        print(f"clfd-bench study tasktime: error: {exc}", file=sys.stderr)
+        return 2
+    labels = list(dict.fromkeys(s.label for s in specs))
+    rows = summarize(grid.records, labels)
+    meta = {"dataset": args.dataset, "profile": args.profile, "methods": args.methods,
+            "regs": args.regs, "seeds": args.seeds, "node": args.node, "tasks": args.tasks,
+            "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)}}
+    files = write_outputs(rows, out, meta)
+    print((out / "task_time.md").read_text())
+    for path in files:
+        print(f"[study tasktime] wrote {path}")
+    for f in grid.failed:
+        print(f"[study tasktime] FAILED {f.spec.name}: {f.error}", file=sys.stderr)
+    return 1 if grid.failed else 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``study tasktime`` subcommand."""
+    p = subparsers.add_parser(
+        "tasktime",
+        help="training time per task of HN/CHN with each output-regulariser mode",
+        description="Trains each method with each hnet_reg mode (all: the paper's loop over "
+        "earlier tasks, batched: the same in one pass, sampled: the follow-up's stochastic "
+        "regulariser) through the leaderboard grid (resumable), then writes task_time.md/"
+        ".csv/.json and task_time.png: seconds per task and last / first.",
+    )
+    p.add_argument("--dataset", default="lasa", help="dataset (default lasa, 26 tasks)")
+    p.add_argument("--methods", type=_names, default=_names("hn,chn"),
+                   help="comma-separated hypernetwork methods (default hn,chn)")
+    p.add_argument("--regs", type=_names, default=_names("all,batched,sampled"),
+                   help="comma-separated hnet_reg modes (default all,batched,sampled)")
+    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
+    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
+    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
+    p.add_argument("--out", required=True, help="output directory (runs, tables, figure)")
+    add_executor_arguments(p, 1, "default 1: parallel runs would share the cores and "
+                                 "change each other's times")
+    p.set_defaults(func=_run)
