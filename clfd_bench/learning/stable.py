@@ -51,7 +51,10 @@ from torch import Tensor
 from clfd_bench.learning.mlp import activation, mlp_forward, mlp_param_shapes
 from clfd_bench.learning.node import check_field_inputs
 
-__all__ = ["StableField", "StableSpec", "lyapunov", "rehu", "rehu_grad"]
+__all__ = [
+    "StableField", "StableSpec", "field_state", "lyapunov", "project", "rehu", "rehu_grad",
+    "v_and_grad",
+]
 
 
 def rehu(u: Tensor, d: float) -> Tensor:
@@ -157,7 +160,7 @@ class StableSpec:
         return StableField(self, weights, cond)
 
 
-class _Icnn:
+class Icnn:
     """The ICNN ``g`` and its input gradient, for a batch, with the embedding folded in."""
 
     def __init__(self, spec: StableSpec, weights: Sequence[Tensor], cond: Tensor | None):
@@ -186,46 +189,105 @@ class _Icnn:
                 i - 1].t()
         return pre[:, 0]
 
-    def value_and_grad(self, z: Tensor) -> tuple[Tensor, Tensor]:
-        """``g(z): [B]`` and ``dg/dz: [B, n_state]`` for ``z: [B, n_state]``."""
+    @classmethod
+    def from_parts(cls, w: Sequence[Tensor], b: Sequence[Tensor], u: Sequence[Tensor],
+                   rehu_d: float) -> Icnn:
+        """An ICNN from its derived tensors (state columns, folded biases, passthroughs)."""
+        icnn = cls.__new__(cls)
+        icnn.w, icnn.b, icnn.u, icnn.rehu_d = list(w), list(b), list(u), rehu_d
+        return icnn
+
+    def value_and_grad(self, z: Tensor, record: dict | None = None) -> tuple[Tensor, Tensor]:
+        """``g(z): [B]`` and ``dg/dz: [B, n_state]`` for ``z: [B, n_state]``.
+
+        ``record`` (a dict) receives what a reverse pass needs: the pre-activations ``p``,
+        the activations ``acts`` and slopes ``s`` of the hidden layers, and the gradient
+        recursion's ``q_i = dg/dp_i`` and ``tq_i = q_i @ Ubar_i`` (``q_k = 1`` is None,
+        ``tq_k`` the output passthrough row)."""
         d = self.rehu_d
-        pre = torch.addmm(self.b[0], z, self.w[0].t())
-        slopes = []  # rehu'(pre_i) of every hidden layer
+        p = [torch.addmm(self.b[0], z, self.w[0].t())]
+        slopes, acts = [], []  # rehu(p_i), rehu'(p_i) of every hidden layer
         for i in range(1, len(self.w)):
-            act, slope = rehu_and_grad(pre, d)
+            act, slope = rehu_and_grad(p[-1], d)
+            acts.append(act)
             slopes.append(slope)
-            pre = torch.addmm(self.b[i], z, self.w[i].t()) + act @ self.u[i - 1].t()
-        # backward sweep: dg/dpre_k = 1, dg/dpre_{i-1} = (dg/dpre_i @ U'_i) * rehu'(pre_{i-1})
-        delta = slopes[-1] * self.u[-1][0]  # [B, h_{k-1}] (the output layer has width 1)
+            p.append(torch.addmm(self.b[i], z, self.w[i].t()) + act @ self.u[i - 1].t())
+        # backward sweep: q_k = dg/dp_k = 1, q_{i-1} = (q_i @ Ubar_i) * rehu'(p_{i-1})
+        k = len(self.w) - 1
+        q: list[Tensor | None] = [None] * (k + 1)
+        tq: list[Tensor | None] = [None] * (k + 1)
+        tq[k] = self.u[-1][0]  # [h_{k-1}] (the output layer has width 1)
+        q[k - 1] = slopes[-1] * tq[k]
         grad = self.w[-1][0].expand_as(z)
-        for i in range(len(self.w) - 2, 0, -1):
-            grad = torch.addmm(grad, delta, self.w[i])
-            delta = (delta @ self.u[i - 1]) * slopes[i - 1]
-        grad = torch.addmm(grad, delta, self.w[0])
-        return pre[:, 0], grad
+        for i in range(k - 1, 0, -1):
+            grad = torch.addmm(grad, q[i], self.w[i])
+            tq[i] = q[i] @ self.u[i - 1]
+            q[i - 1] = tq[i] * slopes[i - 1]
+        grad = torch.addmm(grad, q[0], self.w[0])
+        if record is not None:
+            record.update(p=p, acts=acts, s=slopes, q=q, tq=tq)
+        return p[-1][:, 0], grad
+
+
+def field_state(t: Tensor | float, y: Tensor, clock: bool) -> Tensor:
+    """The state ``V`` and ``f_hat`` read: ``y: [B, D]``, with the clock ``[y, t]: [B, D + 1]``
+    (``t`` a float, a one-element tensor, or ``[B, 1]`` per-sample times; also under vmap)."""
+    if not clock:
+        return y
+    if isinstance(t, Tensor):
+        tt = t.to(y.dtype) if t.dim() == 2 else t.to(y.dtype).reshape(1, 1).expand(
+            y.shape[0], 1)
+    else:
+        tt = torch.full((y.shape[0], 1), float(t), dtype=y.dtype, device=y.device)
+    return torch.cat([y, tt], dim=1)
 
 
 def lyapunov(spec: StableSpec, weights: Sequence[Tensor], z: Tensor,
              cond: Tensor | None = None) -> tuple[Tensor, Tensor]:
     """``V(z): [B]`` and ``grad V(z): [B, n_state]`` for ``z: [B, n_state]`` (the state, and
     the time last with the clock). ``V(0) = 0``, ``V(z) >= eps |z|^2``."""
-    icnn = _Icnn(spec, weights[len(spec.fhat_shapes()):], cond)
+    icnn = Icnn(spec, weights[len(spec.fhat_shapes()):], cond)
     return _lyapunov(spec, icnn, _origin_value(icnn, spec), z)
 
 
-def _origin_value(icnn: _Icnn, spec: StableSpec) -> Tensor:
+def _origin_value(icnn: Icnn, spec: StableSpec) -> Tensor:
     """``g(0)``, V's reference (differentiable: V(0) = 0 for every value of the weights)."""
     w = icnn.w[0]
     return icnn.value(torch.zeros(1, spec.n_state, dtype=w.dtype, device=w.device))
 
 
-def _lyapunov(spec: StableSpec, icnn: _Icnn, g0: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+def _lyapunov(spec: StableSpec, icnn: Icnn, g0: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
     g, dg = icnn.value_and_grad(z)
+    return v_and_grad(g, g0, dg, z, spec.eps)
+
+
+def v_and_grad(g: Tensor, g0: Tensor, dg: Tensor, z: Tensor, eps: float,
+               record: dict | None = None) -> tuple[Tensor, Tensor]:
+    """``V = rehu_1(g - g0) + eps |z|^2: [B]`` and ``grad V: [B, n]`` from the ICNN's value
+    ``g: [B]`` and gradient ``dg: [B, n]``; ``record`` receives ``uu = g - g0`` and
+    ``r = rehu_1'(uu)``."""
     u = g - g0
     outer, slope = rehu_and_grad(u, 1.0)
-    v = outer + spec.eps * (z * z).sum(dim=1)
-    dv = slope.unsqueeze(1) * dg + (2.0 * spec.eps) * z
+    v = outer + eps * (z * z).sum(dim=1)
+    dv = slope.unsqueeze(1) * dg + (2.0 * eps) * z
+    if record is not None:
+        record.update(uu=u, r=slope, grad=dg)
     return v, dv
+
+
+def project(fx: Tensor, v: Tensor, dv: Tensor, alpha: float,
+            record: dict | None = None) -> Tensor:
+    """``f = fx - dv relu(<dv, fx> + alpha v) / |dv|^2: [B, n]`` (the module docstring);
+    ``record`` receives ``m``, ``n2`` (floored), ``n2_ok`` (not floored) and ``coef``."""
+    m = (dv * fx).sum(dim=1) + alpha * v
+    # |grad V|^2 is 0 only at the origin, where the push is 0 too: the floor avoids 0/0
+    tiny = torch.finfo(dv.dtype).tiny
+    n2_raw = (dv * dv).sum(dim=1)
+    n2 = n2_raw.clamp_min(tiny)
+    coef = F.relu(m) / n2
+    if record is not None:
+        record.update(m=m, n2=n2, n2_ok=n2_raw >= tiny, coef=coef, dv=dv, fx=fx)
+    return fx - dv * coef.unsqueeze(1)
 
 
 class StableField:
@@ -253,7 +315,7 @@ class StableField:
         self._w0t = fhat[0][:, c + d] if spec.clock else None
         self._b0 = fhat[1] if cond is None else fhat[1] + fhat[0][:, :c] @ cond
         self._rest = fhat[2:]
-        self._icnn = _Icnn(spec, weights[n_fhat:], cond)
+        self._icnn = Icnn(spec, weights[n_fhat:], cond)
         self._g0 = _origin_value(self._icnn, spec)  # once per set of weights
 
     def tape_tensors(self) -> tuple[tuple[Tensor | None, ...], int, int]:
@@ -268,14 +330,7 @@ class StableField:
         return tensors, len(self._rest), len(icnn.w)
 
     def _state(self, t: Tensor | float, y: Tensor) -> Tensor:
-        if not self.spec.clock:
-            return y
-        if isinstance(t, Tensor):  # [B, 1] per-sample times, or one time (also under vmap)
-            tt = t.to(y.dtype) if t.dim() == 2 else t.to(y.dtype).reshape(1, 1).expand(
-                y.shape[0], 1)
-        else:
-            tt = torch.full((y.shape[0], 1), float(t), dtype=y.dtype, device=y.device)
-        return torch.cat([y, tt], dim=1)
+        return field_state(t, y, self.spec.clock)
 
     def nominal(self, t: Tensor | float, y: Tensor) -> Tensor:
         """``f_hat(z)`` padded with ``dt/dt = 1`` under the clock: ``[B, n_state]``."""
@@ -293,10 +348,5 @@ class StableField:
 
     def __call__(self, t: Tensor | float, y: Tensor) -> Tensor:
         z = self._state(t, y)  # once: the nominal field and V read the same [y, t]
-        fx = self._nominal(z)
         v, dv = _lyapunov(self.spec, self._icnn, self._g0, z)
-        push = F.relu((dv * fx).sum(dim=1) + self.spec.alpha * v)
-        # |grad V|^2 is 0 only at the origin, where push is 0 too: the floor avoids 0/0
-        norm2 = (dv * dv).sum(dim=1).clamp_min(torch.finfo(dv.dtype).tiny)
-        out = fx - dv * (push / norm2).unsqueeze(1)
-        return out[:, : self.spec.dim]
+        return project(self._nominal(z), v, dv, self.spec.alpha)[:, : self.spec.dim]

@@ -32,6 +32,7 @@ import torch.nn.functional as F
 from torch import Tensor
 
 from clfd_bench.learning.fused_mlp import MLPTape
+from clfd_bench.learning.stable import Icnn, field_state, project, v_and_grad
 
 __all__ = ["StableTape"]
 
@@ -57,7 +58,8 @@ class StableTape:
                  alpha: float, eps: float, rehu_d: float, record: bool):
         w0y, w0t, b0, rest = fhat
         self.mlp = MLPTape(w0y, w0t, b0, rest, act, record)
-        self.a, self.c, self.u = list(icnn_a), list(icnn_c), list(icnn_u)
+        self.icnn = Icnn.from_parts(icnn_a, icnn_c, icnn_u, rehu_d)
+        self.a, self.c, self.u = self.icnn.w, self.icnn.b, self.icnn.u
         self._a_t = [a.t() for a in self.a]
         self._u_t = [u.t() for u in self.u]
         self.g0 = g0
@@ -70,58 +72,22 @@ class StableTape:
 
     # forward ------------------------------------------------------------------------------
 
-    def _state(self, t: float | Tensor, y: Tensor) -> Tensor:
-        if not self.clock:
-            return y
-        if isinstance(t, Tensor):
-            tt = t.to(y.dtype) if t.dim() == 2 else t.to(y.dtype).reshape(1, 1).expand(
-                y.shape[0], 1)
-        else:
-            tt = torch.full((y.shape[0], 1), float(t), dtype=y.dtype, device=y.device)
-        return torch.cat([y, tt], dim=1)
-
     def __call__(self, t: float | Tensor, y: Tensor, bias: Tensor | None = None,
                  record: bool = True) -> Tensor:
-        """``f(t, y)`` for ``y: [B, D]`` (``bias`` is unused: no precomputed biases)."""
+        """``f(t, y)`` for ``y: [B, D]`` (``bias`` is unused: no precomputed biases). The
+        same functions as :class:`~clfd_bench.learning.stable.StableField` compute it."""
         keep = self.record and record
+        rec: dict | None = {} if keep else None
         fx = self.mlp(t, y, record=keep)  # [B, D]
-        z = self._state(t, y)
-        d = self.d
-        # ICNN value and input gradient, as stable._Icnn.value_and_grad
-        p = [torch.addmm(self.c[0], z, self._a_t[0])]
-        s = []  # rehu_d'(p_{i-1}) for layers 1..k
-        acts = []  # rehu_d(p_{i-1})
-        for i in range(1, len(self.a)):
-            cl = p[-1].clamp(0.0, d)
-            acts.append(cl * cl * (0.5 / d) + F.relu(p[-1] - d))
-            s.append(cl * (1.0 / d))
-            p.append(torch.addmm(self.c[i], z, self._a_t[i]) + acts[-1] @ self._u_t[i - 1])
-        k = len(self.a) - 1
-        q = [None] * (k + 1)  # dg/dp_i, q_k = 1
-        tq = [None] * (k + 1)  # Ubar_i^T q_i, for layers 1..k
-        q[k] = torch.ones_like(p[k])
-        grad = self.a[k][0].expand_as(z)
-        for i in range(k, 0, -1):
-            tq[i] = q[i] @ self.u[i - 1]  # [B, h_{i-1}]
-            q[i - 1] = tq[i] * s[i - 1]
-            grad = torch.addmm(grad, q[i - 1], self.a[i - 1])
-        g = p[k][:, 0]
-        uu = g - self.g0
-        cl = uu.clamp(0.0, 1.0)
-        v = cl * cl * 0.5 + F.relu(uu - 1.0) + self.eps * (z * z).sum(dim=1)
-        dv = cl.unsqueeze(1) * grad + (2.0 * self.eps) * z
-        fxa = torch.cat([fx, torch.ones_like(fx[:, :1])], dim=1) if self.clock else fx
-        m = (dv * fxa).sum(dim=1) + self.alpha * v
-        push = F.relu(m)
-        n2_raw = (dv * dv).sum(dim=1)
-        tiny = torch.finfo(dv.dtype).tiny
-        n2 = n2_raw.clamp_min(tiny)
-        coef = push / n2
-        out = fxa - dv * coef.unsqueeze(1)
-        if keep:
-            self.evals.append({"z": z, "p": p, "s": s, "acts": acts, "q": q, "tq": tq,
-                               "grad": grad, "uu": uu, "r": cl, "dv": dv, "fx": fxa,
-                               "m": m, "n2": n2, "n2_ok": n2_raw >= tiny, "coef": coef})
+        if self.clock:
+            fx = torch.cat([fx, torch.ones_like(fx[:, :1])], dim=1)
+        z = field_state(t, y, self.clock)
+        g, grad = self.icnn.value_and_grad(z, rec)
+        v, dv = v_and_grad(g, self.g0, grad, z, self.eps, rec)
+        out = project(fx, v, dv, self.alpha, rec)
+        if rec is not None:
+            rec["z"] = z
+            self.evals.append(rec)
         return out[:, : self.dim]
 
     # reverse ------------------------------------------------------------------------------
@@ -173,6 +139,7 @@ class StableTape:
         k = len(self.a) - 1
         d = self.d
         p_bar: list[Tensor | None] = [None] * (k + 1)
+        q = [*q[:k], torch.ones_like(z[:, :1])]  # q_k = dg/dg = 1: [B, 1]
         q_bar = w @ self._a_t[0]  # [B, h_0]
         for i in range(k + 1):
             self._a_pairs[i].append((q[i], w))
