@@ -52,6 +52,7 @@ def test_unknown_name_lists_methods_and_entries():
         check_methods(["hn-snod"])
     text = str(err.value)
     assert "'hn-snod'" in text and "chn" in text and "named entries: hn-snode, chn-snode" in text
+    assert text.endswith("(did you mean 'hn-snode'?)")
 
 
 def _record(spec: RunSpec, acc: float, size: int) -> RunRecord:

@@ -38,14 +38,18 @@ def check_methods(methods: list[str]) -> None:
         UnknownMethodError: the first unknown name, with the valid methods and entries.
         MethodClassError: a plugin class that is not a method.
     """
+    import difflib
+
     from clfd_bench.leaderboard.entries import ENTRIES, entry_help
-    from clfd_bench.methods import UnknownMethodError, get_method_class
+    from clfd_bench.methods import UnknownMethodError, get_method_class, list_methods
 
     for name in methods:
         try:
             get_method_class(ENTRIES[name].method if name in ENTRIES else name)
         except UnknownMethodError as exc:
-            raise UnknownMethodError(f"{exc}; or {entry_help()}") from None
+            close = difflib.get_close_matches(name, [*list_methods(), *ENTRIES], n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise UnknownMethodError(f"{exc}; or {entry_help()}{hint}") from None
 
 
 def validate_plan(specs: list[RunSpec], out: Path) -> None:
