@@ -69,10 +69,12 @@ def rehu_grad(u: Tensor, d: float) -> Tensor:
 
 
 def rehu_and_grad(u: Tensor, d: float) -> tuple[Tensor, Tensor]:
-    """:func:`rehu` and :func:`rehu_grad` from one clamp: ``c^2 / 2d + relu(u - d)`` and
-    ``c / d`` with ``c = clamp(u, 0, d)``."""
+    """:func:`rehu` and :func:`rehu_grad` from one clamp, in four operations: the slope
+    ``s = c / d`` and the value ``s (u - c / 2)`` with ``c = clamp(u, 0, d)`` (0 below 0,
+    ``u^2 / 2d`` up to ``d``, ``u - d/2`` above)."""
     c = u.clamp(0.0, d)
-    return c * c * (0.5 / d) + F.relu(u - d), c * (1.0 / d)
+    slope = c * (1.0 / d)
+    return slope * torch.add(u, c, alpha=-0.5), slope
 
 
 @dataclass(frozen=True)
