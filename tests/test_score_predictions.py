@@ -158,6 +158,8 @@ BAD = {
                                               "not real numbers"]),
     "wrong dimension": (lambda e: np.zeros((8, 1000, 7)), ["[8, 1000, 7]", "D = 7",
                                                            "is --dataset right?"]),
+    "millimetres": (lambda e: e * 1000, ["'task_1'", "1e+03x the size", "other units?"]),
+    "shrunk": (lambda e: e * 0.003, ["'task_1'", "0.003x the size", "do not start at"]),
 }
 
 

@@ -195,7 +195,49 @@ def _prediction(npz, key: str, where: str, task: Task, j: int, ds: Dataset, m: i
         bad = ~np.isfinite(arr.reshape(arr.shape[0], -1)).all(axis=1)
         nonfinite.append({"file": file, "key": key,
                           "demos": [int(d) for d in np.flatnonzero(bad)]})
+    ratio, offset = size_ratio(arr, task), start_offset(arr, task)
+    if offset > 0.1 and not 1.0 / SIZE_RATIO_LIMIT <= ratio <= SIZE_RATIO_LIMIT:
+        raise _error(where, f"key {key!r}: the predictions are {ratio:.3g}x the size of task "
+                     f"{task.name!r}'s demos and do not start at their starts (off by "
+                     f"{offset:.0%} of the demos' extent): other units? (metres for LASA "
+                     "units is 0.003x, millimetres for metres 1000x)", ds, m,
+                     "save predictions in the dataset's units, from each demo's start")
     return arr
+
+
+SIZE_RATIO_LIMIT = 30.0
+"""Predictions are refused as being in other units when they are more than this factor larger
+(or smaller) than the demos (:func:`size_ratio`) *and* do not start at the demos' starts
+(:func:`start_offset` > 10 % of the extent): m vs mm is 1000x, LASA units vs m 333x. A wrong
+skill in the right units passes (another task's demos: 0.35-2.9x on every dataset, none
+refused); so does a diverging or motionless prediction, which starts where its demo does."""
+
+
+def _finite_positions(predictions: np.ndarray, dim: int) -> np.ndarray:
+    pos = predictions[..., :dim].reshape(-1, dim)
+    return pos[np.isfinite(pos).all(axis=1)]
+
+
+def size_ratio(predictions: np.ndarray, task: Task) -> float:
+    """How large the predicted positions ``[N, T, D]`` are against ``task``'s demos: the
+    median distance of the finite predicted positions from their own mean, over the same for
+    the demos (1 for the demos, ``k`` for the demos times ``k``; 1 when nothing is finite)."""
+    dim = task.positions.shape[-1]
+    demos, pos = task.positions.reshape(-1, dim), _finite_positions(predictions, dim)
+    if len(pos) < 2:
+        return 1.0
+    spread = float(np.median(np.linalg.norm(pos - pos.mean(axis=0), axis=1)))
+    return spread / float(np.median(np.linalg.norm(demos - demos.mean(axis=0), axis=1)))
+
+
+def start_offset(predictions: np.ndarray, task: Task) -> float:
+    """Median distance of each prediction's first position from its demo's, as a fraction of
+    the demos' extent (the largest range of a position coordinate); 0 when none is finite."""
+    dim = task.positions.shape[-1]
+    d = np.linalg.norm(predictions[:, 0, :dim] - task.positions[:, 0], axis=1)
+    d = d[np.isfinite(d)]
+    extent = float(np.ptp(task.positions.reshape(-1, dim), axis=0).max())
+    return float(np.median(d)) / extent if len(d) else 0.0
 
 
 def _numbers(value: Any, name: str, m: int, minimum_exclusive: bool, where: str,
