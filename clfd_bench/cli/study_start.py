@@ -54,6 +54,7 @@ def _run(args: argparse.Namespace) -> int:
     from clfd_bench.studies.start_robustness import (
         STUDY_DATASETS,
         StudyConfig,
+        check_executable,
         run_start_study,
         study_dataset,
         study_tasks,
@@ -91,10 +92,7 @@ def _run(args: argparse.Namespace) -> int:
         if args.methods and dataset != args.dataset:
             raise ValueError(f"the --run dirs are {dataset} runs and --dataset is "
                              f"{args.dataset}; study one dataset at a time")
-        if cfg.execute and dataset != "robotasks":
-            raise ValueError(f"{dataset} runs are not executed in this study (the writing test "
-                             "compares with the demo's path, which another start does not "
-                             "reproduce); add --no-exec: the end Δ is the measure there")
+        check_executable(dataset, cfg.execute)
         for label, path in (_train(args, out) if args.methods else {}).items():
             runs[label if label not in runs else f"{label}#trained"] = path
         tasks = study_tasks(runs)

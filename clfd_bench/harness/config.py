@@ -64,6 +64,7 @@ __all__ = [
     "parse_override",
     "resolve_config",
     "run_rules",
+    "suggest",
 ]
 
 PROFILES = ("paper", "fast", "smoke")
@@ -139,7 +140,8 @@ class RunConfig:
         )
 
 
-def _suggest(key: str, valid: Sequence[str]) -> str:
+def suggest(key: str, valid: Sequence[str]) -> str:
+    """`` (did you mean 'x'?)`` for the valid name closest to ``key``, or ``""``."""
     close = difflib.get_close_matches(key, list(valid), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""
 
@@ -155,7 +157,7 @@ def _build_part(values: dict[str, Any], where: str) -> PartConfig:
     for key, value in values.items():
         if key not in PART_FIELDS:
             raise ConfigError(
-                f"{where}: unknown key {key!r}{_suggest(key, list(PART_FIELDS))}; "
+                f"{where}: unknown key {key!r}{suggest(key, list(PART_FIELDS))}; "
                 f"valid keys: {', '.join(PART_FIELDS)}"
             )
         if value is None:
@@ -249,14 +251,14 @@ def load_profile_table(method: str, profile: str,
 
 def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
     if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
+        raise ConfigError(f"unknown profile {profile!r}{suggest(profile, PROFILES)}; "
                           f"valid: {', '.join(PROFILES)}")
     path, doc = _read_baselines(src)
     top_valid = {"method", "description", *PROFILES}
     for key in doc:
         if key not in top_valid:
             raise ConfigError(
-                f"{path}: unknown top-level key {key!r}{_suggest(key, sorted(top_valid))}; "
+                f"{path}: unknown top-level key {key!r}{suggest(key, sorted(top_valid))}; "
                 f"valid: {', '.join(sorted(top_valid))}"
             )
     if doc.get("method") != src.name:
@@ -270,7 +272,7 @@ def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
     for key in table:
         if key not in valid:
             raise ConfigError(
-                f"{path} [{profile}]: unknown table {key!r}{_suggest(key, sorted(valid))}; "
+                f"{path} [{profile}]: unknown table {key!r}{suggest(key, sorted(valid))}; "
                 f"valid: {', '.join(sorted(valid))}"
             )
     return table
@@ -296,7 +298,7 @@ def parse_override(text: str, own_keys: Sequence[str] = ()) -> tuple[str | None,
     if key not in PART_FIELDS and key not in own_keys:
         known = [*PART_FIELDS, *own_keys]
         raise ConfigError(
-            f"--set {text}: unknown key {key!r}{_suggest(key, known)}; "
+            f"--set {text}: unknown key {key!r}{suggest(key, known)}; "
             f"valid keys: {', '.join(known)}"
         )
     return part, key, value
@@ -489,10 +491,10 @@ def resolve_config(
     own_rules: Mapping[str, Rule] = method_cls.own_hyperparameters
     allowed = COMMON_KEYS | method_keys
     if dataset not in DATASET_TABLES:
-        raise ConfigError(f"unknown dataset {dataset!r}{_suggest(dataset, DATASET_TABLES)}; "
+        raise ConfigError(f"unknown dataset {dataset!r}{suggest(dataset, DATASET_TABLES)}; "
                           f"valid: {', '.join(DATASET_TABLES)}")
     if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}{_suggest(profile, PROFILES)}; "
+        raise ConfigError(f"unknown profile {profile!r}{suggest(profile, PROFILES)}; "
                           f"valid: {', '.join(PROFILES)}")
     check_run_values({"node": node, "order": order, "seed": seed, "tasks": tasks}, dataset,
                      arg_names)
@@ -543,7 +545,7 @@ def resolve_config(
                 if key not in PART_FIELDS and key not in own_rules:
                     known = [*PART_FIELDS, *own_rules]
                     raise ConfigError(
-                        f"{where}: unknown key {key!r}{_suggest(key, known)}; "
+                        f"{where}: unknown key {key!r}{suggest(key, known)}; "
                         f"valid keys: {', '.join(known)}"
                     )
                 merged[key] = value

@@ -38,8 +38,7 @@ def check_methods(methods: list[str]) -> None:
         UnknownMethodError: the first unknown name, with the valid methods and entries.
         MethodClassError: a plugin class that is not a method.
     """
-    import difflib
-
+    from clfd_bench.harness.config import suggest
     from clfd_bench.leaderboard.entries import ENTRIES, entry_help
     from clfd_bench.methods import UnknownMethodError, get_method_class, list_methods
 
@@ -47,8 +46,7 @@ def check_methods(methods: list[str]) -> None:
         try:
             get_method_class(ENTRIES[name].method if name in ENTRIES else name)
         except UnknownMethodError as exc:
-            close = difflib.get_close_matches(name, [*list_methods(), *ENTRIES], n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint = suggest(name, [*list_methods(), *ENTRIES])
             raise UnknownMethodError(f"{exc}; or {entry_help()}{hint}") from None
 
 

@@ -208,7 +208,7 @@ class Icnn:
         ``tq_k`` the output passthrough row)."""
         d = self.rehu_d
         p = [torch.addmm(self.b[0], z, self.w[0].t())]
-        slopes, acts = [], []  # rehu(p_i), rehu'(p_i) of every hidden layer
+        slopes, acts = [], []  # rehu'(p_i), rehu(p_i) of every hidden layer
         for i in range(1, len(self.w)):
             act, slope = rehu_and_grad(p[-1], d)
             acts.append(act)

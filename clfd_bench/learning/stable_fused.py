@@ -27,27 +27,32 @@ __all__ = ["FUSED_SOLVERS", "integrate_stable"]
 FUSED_SOLVERS = ("rk4", "euler")
 
 
-def _split(layout: tuple[int, int, bool], tensors: tuple[Tensor | None, ...]):
-    n_rest, k, _ = layout
-    w0y, w0t, b0 = tensors[:3]
-    rest = list(tensors[3 : 3 + n_rest])
+def _tape(settings: tuple, layout: tuple[int, int], tensors: tuple[Tensor | None, ...],
+          record: bool) -> StableTape:
+    """The tape over ``tensors`` as :meth:`StableField.tape_tensors` lays them out
+    (``layout``: the number of later ``f_hat`` layers' tensors and of ICNN layers)."""
+    act, dim, clock, alpha, eps, rehu_d = settings
+    n_rest, k = layout
+    fhat = (*tensors[:3], list(tensors[3 : 3 + n_rest]))
     i = 3 + n_rest
     a, c, u = tensors[i : i + k], tensors[i + k : i + 2 * k], tensors[i + 2 * k : i + 3 * k - 1]
-    return (w0y, w0t, b0, rest), list(a), list(c), list(u), tensors[-1]
+    return StableTape(fhat, list(a), list(c), list(u), tensors[-1], act, dim, clock, alpha,
+                      eps, rehu_d, record)
 
 
-def _tape(settings: tuple, layout: tuple[int, int, bool], tensors, record: bool) -> StableTape:
-    act, dim, clock, alpha, eps, rehu_d = settings
-    fhat, a, c, u, g0 = _split(layout, tensors)
-    return StableTape(fhat, a, c, u, g0, act, dim, clock, alpha, eps, rehu_d, record)
+def _sweep(tape: StableTape, method: str, y0: Tensor, times: Tensor, substeps: int):
+    """The forward sweep of ``method``: ``([B, K, D] states, step sizes)``."""
+    if method == "rk4":
+        return rk4_fused.sweep_forward(tape, y0, times, substeps)
+    return _euler_forward(tape, y0, times, substeps)
 
 
 def _euler_forward(tape: StableTape, y0: Tensor, times: Tensor, substeps: int):
     """Explicit Euler over ``times`` (``[K]`` or ``[B, K]``) with ``substeps`` steps per
-    interval; returns ``([B, K, D] states, [(t, h)] per step)``."""
+    interval; returns ``([B, K, D] states, the step size of every step)``."""
     per_sample = times.dim() == 2
     tk = times if per_sample else times.unsqueeze(0)
-    steps: list[tuple[float | Tensor, float | Tensor]] = []
+    steps: list[float | Tensor] = []
     y, out = y0, [y0]
     for k in range(tk.shape[1] - 1):
         if per_sample:
@@ -57,10 +62,9 @@ def _euler_forward(tape: StableTape, y0: Tensor, times: Tensor, substeps: int):
             t0 = float(tk[0, k])
             h = (float(tk[0, k + 1]) - t0) / substeps
         for s in range(substeps):
-            t = t0 + s * h
-            f = tape(t, y)
+            f = tape(t0 + s * h, y)
             y = torch.add(y, f, alpha=h) if isinstance(h, float) else torch.addcmul(y, h, f)
-            steps.append((t, h))
+            steps.append(h)
         out.append(y)
     return torch.stack(out, dim=1), steps
 
@@ -74,7 +78,7 @@ def _euler_reverse(tape: StableTape, steps: list, substeps: int, grad_out: Tenso
     for k in range(grad_out.shape[1] - 2, -1, -1):
         for _ in range(substeps):
             step -= 1
-            h = steps[step][1]
+            h = steps[step]
             scaled = torch.mul(ybar, h) if isinstance(h, float) else ybar * h
             ybar = ybar + tape.vjp(scaled, step)
         ybar = ybar + grad_out[:, k]
@@ -86,10 +90,7 @@ class _FusedStable(torch.autograd.Function):
     def forward(ctx, y0, times, method, substeps, settings, layout, *tensors):
         tape = _tape(settings, layout, tensors, record=True)
         with torch.no_grad():
-            if method == "rk4":
-                result, steps = rk4_fused.sweep_forward(tape, y0, times, substeps)
-            else:
-                result, steps = _euler_forward(tape, y0, times, substeps)
+            result, steps = _sweep(tape, method, y0, times, substeps)
         ctx.tape, ctx.steps, ctx.method, ctx.substeps = tape, steps, method, substeps
         ctx.g0_shape = tensors[-1].shape
         return result
@@ -133,12 +134,10 @@ def integrate_stable(field: StableField, y0: Tensor, times: Tensor, method: str,
     times = times.to(y0.dtype)
     tensors, n_rest, n_layers = field.tape_tensors()
     settings = (spec.activation, spec.dim, spec.clock, spec.alpha, spec.eps, spec.rehu_d)
-    layout = (n_rest, n_layers, spec.clock)
+    layout = (n_rest, n_layers)
     if not (torch.is_grad_enabled()
             and any(t is not None and t.requires_grad for t in (y0, *tensors))):
         with torch.no_grad():
             tape = _tape(settings, layout, tensors, record=False)
-            if method == "rk4":
-                return rk4_fused.sweep_forward(tape, y0, times, int(substeps))[0]
-            return _euler_forward(tape, y0, times, int(substeps))[0]
+            return _sweep(tape, method, y0, times, int(substeps))[0]
     return _FusedStable.apply(y0, times, method, int(substeps), settings, layout, *tensors)

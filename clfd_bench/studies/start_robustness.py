@@ -52,8 +52,8 @@ from clfd_bench.runs import RunDir, RunFileError
 
 __all__ = [
     "BINS_CM", "DIVERGED_M", "LARGE_M", "STUDY_DATASETS", "StartRecord", "StudyConfig",
-    "approach_path", "choose_demo", "draw_starts", "end_deltas", "execute", "horizon_times",
-    "run_label", "run_start_study", "sample_ball", "study_dataset",
+    "approach_path", "check_executable", "choose_demo", "draw_starts", "end_deltas",
+    "execute", "horizon_times", "run_label", "run_start_study", "sample_ball", "study_dataset",
 ]
 
 #: Start-Δ bins of the summary and the figure, centimetres.
@@ -310,6 +310,15 @@ def _save_cache(path: Path, key: dict[str, Any], cached: dict[int, StartRecord])
                                                      for i, r in sorted(cached.items())}})
 
 
+def check_executable(dataset: str, execute: bool) -> None:
+    """Only RoboTasks runs are executed in this study (the module docstring); raises
+    ValueError saying what to do otherwise."""
+    if execute and dataset != DATASET:
+        raise ValueError(f"{dataset} runs are not executed in this study (the writing test "
+                         "compares with the demo's path, which another start does not "
+                         "reproduce); add --no-exec: the end Δ is the measure there")
+
+
 def study_dataset(runs: dict[str, Path]) -> str:
     """The one dataset every run was trained on (raises ValueError naming the mix)."""
     datasets = {label: _run_config(d)["dataset"] for label, d in runs.items()}
@@ -381,10 +390,7 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
     from clfd_bench.progress import progress
 
     dataset = study_dataset(runs)
-    if cfg.execute and dataset != DATASET:
-        raise ValueError(f"{dataset} runs are not executed in this study (the writing test "
-                         "compares with the demo's path, which another start does not "
-                         "reproduce); use --no-exec: the end Δ is the measure there")
+    check_executable(dataset, cfg.execute)
     pos_dim = STUDY_DATASETS[dataset]
     ds = load_dataset(dataset)
     by_name = {t.name: t for t in ds.tasks}
