@@ -38,6 +38,7 @@ __all__ = [
     "TrainingDivergedError",
     "TrainStats",
     "batch_spec",
+    "lr_factor",
     "solver_blew_up",
     "solver_spec",
     "train_task",
@@ -110,12 +111,19 @@ def warm_up() -> None:
     _adam([torch.nn.Parameter(torch.zeros(1))], 1e-3)
 
 
-def _lr_factor(cfg: PartConfig, iteration: int) -> float:
-    if cfg.lr_schedule == "constant":
-        return 1.0
-    progress_frac = iteration / max(1, cfg.iterations)
-    cos = 0.5 * (1.0 + math.cos(math.pi * progress_frac))
-    return cfg.lr_min_factor + (1.0 - cfg.lr_min_factor) * cos
+def lr_factor(cfg: PartConfig, iteration: int) -> float:
+    """Learning rate of step ``iteration`` (0-based) of a task over ``cfg.lr``: the schedule
+    (``constant`` 1, ``cosine`` from 1 to ``lr_min_factor``) times the linear warm-up
+    ``min(1, (iteration + 1) / n)`` over the first ``n = lr_warmup * iterations`` steps."""
+    factor = 1.0
+    if cfg.lr_schedule == "cosine":
+        progress_frac = iteration / max(1, cfg.iterations)
+        cos = 0.5 * (1.0 + math.cos(math.pi * progress_frac))
+        factor = cfg.lr_min_factor + (1.0 - cfg.lr_min_factor) * cos
+    warmup = cfg.lr_warmup * cfg.iterations
+    if warmup > 0:
+        factor *= min(1.0, (iteration + 1) / warmup)
+    return factor
 
 
 def train_task(
@@ -144,7 +152,7 @@ def train_task(
     method.train()
     method.on_task_start(task, data)
     optimizer = _adam(method.trainable(task), cfg.lr)
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda it: _lr_factor(cfg, it))
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda it: lr_factor(cfg, it))
     samplers: dict[int, BatchSampler] = {}
     loss_value = float("nan")
     bar = progress(total=cfg.iterations, desc=desc or f"task {task}")

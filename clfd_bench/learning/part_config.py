@@ -22,6 +22,7 @@ __all__ = [
     "ConfigError",
     "Constraint",
     "IMPORTANCE_MERGES",
+    "OMITTED_AT_DEFAULT",
     "PART_CONSTRAINTS",
     "PART_FIELDS",
     "PART_RULES",
@@ -155,6 +156,8 @@ PART_RULES: dict[str, Rule] = {
     "lr": Rule("float", lo=0, lo_open=True, what="Adam learning rate"),
     "lr_schedule": Rule("str", choices=("constant", "cosine")),
     "lr_min_factor": Rule("float", lo=0, hi=1, what="final lr / lr of the cosine schedule"),
+    "lr_warmup": Rule("float", lo=0, hi=1, what="fraction of a task's iterations over which "
+                      "the lr rises linearly to its value; 0: none"),
     # networks
     "node_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the NODE"),
     "activation": Rule("str", choices=tuple(ACTIVATIONS)),
@@ -243,6 +246,9 @@ class PartConfig:
     Training:
         iterations: optimiser steps per task. lr: Adam learning rate (all parameters).
         lr_schedule: ``constant`` or ``cosine`` (decays to ``lr * lr_min_factor``).
+        lr_warmup: fraction of each task's iterations over which the learning rate rises
+        linearly from ``lr / n`` to the schedule's value (``n`` = the warm-up's iterations);
+        0 (the default, and the paper's): none. Left out of saved configs at 0.
     Batches (:mod:`clfd_bench.learning.batches`):
         batch: ``windows`` (paper: ``tsub`` consecutive samples) or ``trajectories`` (whole
         trajectories subsampled to ``points``, horizon growing from ``horizon_start`` over the
@@ -285,6 +291,7 @@ class PartConfig:
     node_hidden: tuple[int, ...]
     lr_schedule: str = "constant"
     lr_min_factor: float = 0.0
+    lr_warmup: float = 0.0
     activation: str = "elu"
     task_emb_dim: int = 0
     hnet_hidden: tuple[int, ...] = ()
@@ -372,7 +379,7 @@ class PartConfig:
         empty (so configs of the built-in methods read as before)."""
         out = dataclasses.asdict(self)
         extras = out.pop("extras")
-        for key in SNODE_KEYS:  # runs saved before the sNODE existed read the same
+        for key in OMITTED_AT_DEFAULT:  # runs saved before these keys existed read the same
             if out[key] == PART_FIELDS[key].default:
                 del out[key]
         out = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
@@ -398,3 +405,7 @@ COMMON_KEYS = frozenset(PART_FIELDS) - {
 SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_clock")
 """The stable NODE's keys: left out of :meth:`PartConfig.to_dict` at their defaults, so the
 saved configs of NODE^T/NODE^I runs, and of runs made before they existed, do not change."""
+
+OMITTED_AT_DEFAULT = (*SNODE_KEYS, "lr_warmup")
+"""Keys :meth:`PartConfig.to_dict` leaves out at their defaults (added after runs had been
+saved; a run without them has the defaults)."""
