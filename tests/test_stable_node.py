@@ -274,6 +274,24 @@ def test_snode_settings_come_from_the_shared_file_then_the_method_then_set(tmp_p
         "position").snode_alpha == 0.5  # the snode tables do not touch NODE^T runs
 
 
+def test_a_methods_snode_table_can_set_one_part_and_misplaced_part_tables_raise(tmp_path):
+    """CHN's [fast.snode] lowers lr for the sNODE, its [fast.snode.orientation] keeps the
+    orientation model's; a part table where no part is read fails instead of being ignored."""
+    from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
+
+    pose = resolve_config("chn", "robotasks", "fast", node="s")
+    assert (pose.part("position").lr, pose.part("orientation").lr) == (0.001, 0.003)
+    assert resolve_config("chn", "lasa", "fast", node="s").part("position").lr == 0.001
+    plain = resolve_config("chn", "robotasks", "fast", node="t")
+    assert plain.part("position").lr == plain.part("orientation").lr == 0.003
+    cli = resolve_config("chn", "robotasks", "fast", node="s", overrides=["lr=0.002"])
+    assert cli.part("orientation").lr == 0.002  # --set still wins
+    own = tmp_path / "sg.toml"
+    own.write_text(baselines_file("sg").read_text() + "\n[fast.defaults.orientation]\nlr = 0.1\n")
+    with pytest.raises(ConfigError, match=r"\[orientation\] sub-table is only read under"):
+        resolve_config("sg", "robotasks", "fast", config_file=own)
+
+
 def test_node_t_and_i_configs_save_as_before_the_snode_existed():
     """Resuming and the grid compare saved configs: a NODE^T/NODE^I run's must not gain keys."""
     from clfd_bench.harness.config import resolve_config

@@ -7,7 +7,8 @@ sub-tables for their two models. Runs of the stable NODE (``--node s``) also rea
 optional ``[profile.snode]`` table. Values resolve as
 
     profile.defaults  <-  profile.<dataset>  <-  profile.<dataset>.<part>
-        <-  baselines/snode.toml [profile]  <-  profile.snode   (both: --node s only)
+        <-  baselines/snode.toml [profile]  <-  profile.snode  <-  profile.snode.<part>
+            (the last three: --node s only)
         <-  --set overrides
 
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
@@ -528,15 +529,23 @@ def resolve_config(
             layers.append((SNODE_FILE, shared))
             sources[SNODE_FILE] = shared_src
             layers.append((SNODE_TABLE, table.get(SNODE_TABLE, {})))
+            if is_pose:
+                own_snode = table.get(SNODE_TABLE, {}).get(part, {})
+                layers.append((f"{SNODE_TABLE}.{part}", own_snode))
         for layer_name, layer in layers:
             layer_src = sources.get(layer_name)
             table_text = profile if layer_src else f"{profile}.{layer_name}"
             where = f"{(layer_src or src).label} [{table_text}]"
             for key, value in layer.items():
                 if key in PARTS_POSE and isinstance(value, dict):
-                    if not is_pose:
+                    if layer_name not in (source, SNODE_TABLE):
+                        raise ConfigError(
+                            f"{where}: a [{key}] sub-table is only read under "
+                            f"[{profile}.<dataset>] and [{profile}.{SNODE_TABLE}]; move its "
+                            f"keys there")
+                    if not is_pose and layer_name != SNODE_TABLE:
                         raise ConfigError(f"{where}: [{key}] tables only exist for pose data")
-                    continue
+                    continue  # read as its own layer (pose data only)
                 if isinstance(value, dict):
                     raise ConfigError(f"{where}: unknown sub-table {key!r}; valid: "
                                       f"{', '.join(PARTS_POSE)}")
@@ -581,7 +590,8 @@ def resolve_config(
         if part == "position" and values.get("tangent_scale", 1.0) != 1.0:
             raise _position_tangent_scale(src, profile, dataset, source, is_pose,
                                           values["tangent_scale"], origin["tangent_scale"])
-        table_name = f"{profile}.{[n for n, _ in layers if n not in (SNODE_TABLE, SNODE_FILE)][-1]}"
+        own_tables = [n for n, _ in layers if not n.startswith((SNODE_TABLE, SNODE_FILE))]
+        table_name = f"{profile}.{own_tables[-1]}"
         for key in sorted(allowed - set(values)):  # keys the method uses, left at default
             default = PART_FIELDS[key].default
             if default is dataclasses.MISSING:
