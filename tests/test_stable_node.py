@@ -286,8 +286,15 @@ def test_a_methods_snode_table_can_set_one_part_and_misplaced_part_tables_raise(
     assert plain.part("position").lr == plain.part("orientation").lr == 0.003
     cli = resolve_config("chn", "robotasks", "fast", node="s", overrides=["lr=0.002"])
     assert cli.part("orientation").lr == 0.002  # --set still wins
-    own = tmp_path / "sg.toml"
-    own.write_text(baselines_file("sg").read_text() + "\n[fast.defaults.orientation]\nlr = 0.1\n")
+    own = tmp_path / "sg.toml"  # [fast.snode.position]: the position model of every dataset
+    base = baselines_file("sg").read_text()
+    own.write_text(base + "\n[fast.snode.position]\nsnode_alpha = 0.3\n")
+    for dataset in ("lasa", "robotasks"):
+        assert resolve_config("sg", dataset, "fast", node="s", config_file=own).part(
+            "position").snode_alpha == 0.3
+    assert resolve_config("sg", "robotasks", "fast", node="s", config_file=own).part(
+        "orientation").snode_alpha == 0.1
+    own.write_text(base + "\n[fast.defaults.orientation]\nlr = 0.1\n")
     with pytest.raises(ConfigError, match=r"\[orientation\] sub-table is only read under"):
         resolve_config("sg", "robotasks", "fast", config_file=own)
 

@@ -8,7 +8,8 @@ optional ``[profile.snode]`` table. Values resolve as
 
     profile.defaults  <-  profile.<dataset>  <-  profile.<dataset>.<part>
         <-  baselines/snode.toml [profile]  <-  profile.snode  <-  profile.snode.<part>
-            (the last three: --node s only)
+            (the last three: --node s only; <part> is position or orientation on every
+            dataset, e.g. profile.snode.position also sets LASA's model)
         <-  --set overrides
 
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
@@ -529,9 +530,7 @@ def resolve_config(
             layers.append((SNODE_FILE, shared))
             sources[SNODE_FILE] = shared_src
             layers.append((SNODE_TABLE, table.get(SNODE_TABLE, {})))
-            if is_pose:
-                own_snode = table.get(SNODE_TABLE, {}).get(part, {})
-                layers.append((f"{SNODE_TABLE}.{part}", own_snode))
+            layers.append((f"{SNODE_TABLE}.{part}", table.get(SNODE_TABLE, {}).get(part, {})))
         for layer_name, layer in layers:
             layer_src = sources.get(layer_name)
             table_text = profile if layer_src else f"{profile}.{layer_name}"
@@ -545,7 +544,7 @@ def resolve_config(
                             f"keys there")
                     if not is_pose and layer_name != SNODE_TABLE:
                         raise ConfigError(f"{where}: [{key}] tables only exist for pose data")
-                    continue  # read as its own layer (pose data only)
+                    continue  # read as its own layer
                 if isinstance(value, dict):
                     raise ConfigError(f"{where}: unknown sub-table {key!r}; valid: "
                                       f"{', '.join(PARTS_POSE)}")
