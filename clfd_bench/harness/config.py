@@ -529,8 +529,9 @@ def resolve_config(
             shared, shared_src = _snode_profile(profile)
             layers.append((SNODE_FILE, shared))
             sources[SNODE_FILE] = shared_src
-            layers.append((SNODE_TABLE, table.get(SNODE_TABLE, {})))
-            layers.append((f"{SNODE_TABLE}.{part}", table.get(SNODE_TABLE, {}).get(part, {})))
+            own_snode = table.get(SNODE_TABLE, {})
+            layers.append((SNODE_TABLE, own_snode))
+            layers.append((f"{SNODE_TABLE}.{part}", own_snode.get(part, {})))
         for layer_name, layer in layers:
             layer_src = sources.get(layer_name)
             table_text = profile if layer_src else f"{profile}.{layer_name}"
@@ -589,8 +590,7 @@ def resolve_config(
         if part == "position" and values.get("tangent_scale", 1.0) != 1.0:
             raise _position_tangent_scale(src, profile, dataset, source, is_pose,
                                           values["tangent_scale"], origin["tangent_scale"])
-        own_tables = [n for n, _ in layers if not n.startswith((SNODE_TABLE, SNODE_FILE))]
-        table_name = f"{profile}.{own_tables[-1]}"
+        table_name = f"{profile}.{source}.{part}" if is_pose else f"{profile}.{source}"
         for key in sorted(allowed - set(values)):  # keys the method uses, left at default
             default = PART_FIELDS[key].default
             if default is dataclasses.MISSING:
