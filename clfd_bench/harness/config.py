@@ -540,7 +540,7 @@ def resolve_config(
                 if key in PARTS_POSE and isinstance(value, dict):
                     if layer_name not in (source, SNODE_TABLE):
                         raise ConfigError(
-                            f"{where}: a [{key}] sub-table is only read under "
+                            f"{where}: the [{key}] sub-table is only read under "
                             f"[{profile}.<dataset>] and [{profile}.{SNODE_TABLE}]; move its "
                             f"keys there")
                     if not is_pose and layer_name != SNODE_TABLE:
