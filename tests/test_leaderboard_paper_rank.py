@@ -137,3 +137,57 @@ def test_paper_ties_share_a_rank_and_missing_runs_are_not_compared():
     assert ranking.not_compared == ["chn"]
     assert "Not compared (no CL_score of ours): CHN" in ranking.note
     assert ranking.matches is True  # the others are in the paper's order
+
+
+def test_exec_cl_score_replaces_acc_and_rem_and_is_ranked_against_the_paper(tmp_path):
+    """HelloWorld NODE^I as measured: SG's letters pass the DTW threshold without their loops
+    (trajectory ACC 1.00) but not the writing criterion; FT forgets. By CL_score SG is ahead
+    of FT, against the paper; by exec CL_score FT is, as in the paper."""
+    from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
+    from clfd_bench.leaderboard.grid import make_grid
+
+    paper_i = {"sg": 0.67, "ft": 0.70, "rep": 0.82, "si": 0.60, "mas": 0.66, "hn": 0.86,
+               "chn": 0.88}  # tab:hw_cl_no_time
+    specs = make_grid("helloworld", HW_METHODS, "fast", [0], [0], node="i")
+    traj = {"sg": (1.00, 1.00), "ft": (0.25, 0.00)}
+    executed = {"sg": (0.64, 1.00), "ft": (0.16, 0.29)}
+    records = []
+    for spec in specs:
+        acc, rem = traj.get(spec.method, (0.9, 0.9))
+        e_acc, e_rem = executed.get(spec.method, (0.9, 0.9))
+        size = 236_558 if spec.method == "sg" else 34_000
+        ms = 0.37 if spec.method == "sg" else 1.0  # SG grows a NODE per task
+        cl = {"ACC": acc, "REM": rem, "BWT": rem - 1, "MS": ms, "TE": 1.0, "SSS": 1.0}
+        records.append(RunRecord(spec, "done", {
+            "cl_metrics": cl, "num_params": [size],
+            "sim_cl_metrics": {"ACC": e_acc, "REM": e_rem, "BWT": e_rem - 1}}))
+    rows = {r.method: r for r in aggregate(records, HW_METHODS)}
+    # SG: FS 0 (the largest model); hand-computed means of the six criteria.
+    assert rows["sg"].values["CL_score"] == [pytest.approx((1 + 1 + 0.37 + 1 + 0 + 1) / 6)]
+    assert rows["sg"].values["exec_CL_score"] == [
+        pytest.approx((0.64 + 1 + 0.37 + 1 + 0 + 1) / 6)]
+    fs_ft = 1 - 34_000 / 236_558
+    assert rows["ft"].values["exec_CL_score"] == [
+        pytest.approx((0.16 + 0.29 + 1 + 1 + fs_ft + 1) / 6)]
+    # The rows here rank SG/FT against the paper's tab:hw_cl_no_time by both scores.
+    for row in rows.values():  # the others far ahead of or behind SG and FT, as in the paper
+        if row.method not in ("sg", "ft"):
+            far = paper_i[row.method] + (0.2 if paper_i[row.method] > 0.7 else -0.2)
+            row.values["CL_score"] = [far]
+            row.values["exec_CL_score"] = [far]
+    write_tables(list(rows.values()), tmp_path, {**_meta(node="i"), "sim": True})
+    md = (tmp_path / "leaderboard.md").read_text()
+    line = next(ln for ln in md.splitlines() if ln.startswith("Paper:"))
+    assert "Our ranking by CL_score differs from the paper's; swapped: FT/SG" in line
+    assert ("Our ranking by exec CL_score (ACC and REM from execution) equals the paper's."
+            in line)
+    js = json.loads((tmp_path / "leaderboard.json").read_text())
+    assert js["paper"]["ranking_matches"] is False
+    assert js["paper"]["executed"]["key"] == "exec_CL_score"
+    assert js["paper"]["executed"]["ranking_matches"] is True
+    assert "| exec CL_score |" in md
+
+
+def test_no_exec_comparison_without_execution(tmp_path):
+    md, js, _, line = _write(tmp_path, dict(HW_PAPER))
+    assert "exec CL_score (ACC" not in line and js["paper"]["executed"] is None

@@ -214,7 +214,8 @@ def test_cli_list_and_tables(tmp_path, capsys):
     assert "missing  helloworld/sg/smoke_nodet_o0_s0_k2" in out
     assert main(["paper", "tables", *argv]) == 0
     assert "1 of 2 selected runs are finished" in capsys.readouterr().out
-    assert (tmp_path / "paper_tables.csv").read_text().count("\nhelloworld_t,") == 20
+    # 2 methods x (8 CL columns + exec ACC, exec REM, exec CL_score)
+    assert (tmp_path / "paper_tables.csv").read_text().count("\nhelloworld_t,") == 22
     assert main(["paper", "tables", *argv[:-1], str(tmp_path / "nope")]) == 2
 
 

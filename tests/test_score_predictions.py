@@ -247,7 +247,8 @@ def test_scored_run_joins_a_leaderboard(grid, ds, tmp_path, capsys):
                                           "external": True}]
     md = (out / "leaderboard.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("| ") and "| MINE |" in x)
-    assert line.count("—") == 8  # CL_score, CL_stab, MS, TE, FS, SSS, train s, params
+    # CL_score, CL_stab, MS, TE, FS, SSS, exec CL_score, train s, params
+    assert line.count("—") == 9
     capsys.readouterr()
     # A label that is also a grid method is refused before any work.
     ft_run = out / "runs" / DATASET / "ft" / "smoke_nodet_o0_s0_k2_nosim"

@@ -4,6 +4,11 @@ Input: the ``results.json`` of each run (schema of :mod:`clfd_bench.harness`). F
 final model sizes of every compared method, so it is computed here, across the grid, and
 CL_score / CL_stability are recomputed with it.
 
+**exec CL_score** is CL_score with ACC and REM taken from executing the predictions in
+simulation (``sim_cl_metrics``) instead of from the DTW threshold; MS, TE, FS and SSS are the
+same. It ranks methods by what the robot achieved (e.g. a NODE^I letter that passes the
+paper's DTW threshold without the loop the letter has fails the writing criterion).
+
 A run scored from predictions made elsewhere (``clfd-bench score``) may not know its model
 size, training time or stored samples (``results.json`` ``not_provided``): its MS, FS, TE, SSS
 and CL_score are then empty, never estimated, and its row records them in ``not_provided``
@@ -98,7 +103,8 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
     across the compared methods), ``BWT``, ``exec_ACC`` / ``exec_REM`` / ``exec_BWT`` (from
     simulation, when the run executed), ``train_time_s`` (total), ``final_params``; and
     ``failures``, the execution failures by kind summed over the runs; ``not_provided``, the
-    keys a run could not fill (module docstring).
+    keys a run could not fill (module docstring). ``exec_CL_score``: CL_score with ACC and REM
+    from execution, for runs that executed and have all six criteria.
     """
     rows = {m: MethodRow(m) for m in methods}
     finished = [r for r in records if r.results is not None and r.status == "done"]
@@ -132,10 +138,14 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
         if len(criteria) == len(CRITERIA):
             row.values["CL_score"].append(cl_score(criteria))
             row.values["CL_stability"].append(cl_stability(criteria))
+        sim_cl = res.get("sim_cl_metrics") or {}
         for key in EXEC_KEYS:
-            value = (res.get("sim_cl_metrics") or {}).get(key)
-            if value is not None:
-                row.values[f"exec_{key}"].append(float(value))
+            if sim_cl.get(key) is not None:
+                row.values[f"exec_{key}"].append(float(sim_cl[key]))
+        if len(criteria) == len(CRITERIA) and all(sim_cl.get(k) is not None
+                                                  for k in ("ACC", "REM")):
+            executed = {**criteria, "ACC": float(sim_cl["ACC"]), "REM": float(sim_cl["REM"])}
+            row.values["exec_CL_score"].append(cl_score(executed))
         counts = (res.get("sim") or {}).get("failure_counts")
         if counts:
             row.failures = row.failures or {}
@@ -151,6 +161,8 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
 def _not_provided(results: dict[str, Any]) -> set[str]:
     """The leaderboard keys a run leaves empty for want of inputs (``not_provided``)."""
     missing = set((results.get("not_provided") or {}).get("criteria") or ())
+    if "CL_score" in missing:
+        missing.add("exec_CL_score")
     fields = set((results.get("not_provided") or {}).get("fields") or ())
     if "num_params" in fields:
         missing.add("final_params")

@@ -19,6 +19,11 @@ unchanged and the line says why no paper table matches.
   ours or in the paper's counts as a tie, and the line says so; the ranking "equals the
   paper's up to ties" when every swap is one. Methods without a CL_score of ours (no finished
   run) are left out of the comparison, and named.
+* By execution: when the runs executed their predictions, the line also compares our ranking
+  by **exec CL_score** (ACC and REM from execution, the other criteria the same:
+  :mod:`clfd_bench.leaderboard.aggregate`) with the paper's ranking by its CL_score, by the
+  same rules. The paper scored trajectories only; this says whether what the robot achieves
+  orders the methods as the paper's trajectory scores did.
 * RoboTasks: the paper has a position table (``tab:rt_pos_cl``, DTW of positions) and an
   orientation table (``tab:rt_ori_cl``, quaternion error). The leaderboard has one CL_score,
   computed (:func:`clfd_bench.leaderboard.aggregate.aggregate`) from a run's
@@ -64,6 +69,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("exec_ACC", "exec ACC"),
     ("exec_REM", "exec REM"),
     ("exec_BWT", "exec BWT"),
+    ("exec_CL_score", "exec CL_score"),
     ("train_time_s", "train s"),
     ("final_params", "params"),
 )
@@ -90,6 +96,9 @@ class PaperRanking:
         swaps: ``{"paper_ahead", "ours_ahead", "paper_diff", "ours_diff", "tie"}`` per
             swapped pair, in the paper's order.
         not_compared: methods without a CL_score of ours.
+        key: which score of ours was compared (``CL_score`` or ``exec_CL_score``).
+        executed: the comparison by ``exec_CL_score`` (set by :func:`write_tables` when the
+            runs executed), None otherwise.
     """
 
     label: str | None
@@ -102,9 +111,12 @@ class PaperRanking:
     matches_up_to_ties: bool | None = None
     swaps: list[dict[str, Any]] = field(default_factory=list)
     not_compared: list[str] = field(default_factory=list)
+    key: str = "CL_score"
+    executed: PaperRanking | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
+            "key": self.key,
             "table": self.label,
             "dataset": self.table[0] if self.table else None,
             "variant": self.table[1] if self.table else None,
@@ -115,6 +127,7 @@ class PaperRanking:
             "swaps": self.swaps,
             "not_compared": self.not_compared,
             "note": self.note,
+            "executed": self.executed.to_dict() if self.executed is not None else None,
         }
 
 
@@ -149,23 +162,30 @@ def _paper_table(meta: dict[str, Any]) -> tuple[tuple[str, str] | None, str]:
     return (dataset, variant), label
 
 
-def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
+def paper_ranking(rows: list[MethodRow], meta: dict[str, Any],
+                  key: str = "CL_score") -> PaperRanking:
     """Compare the leaderboard's rows (any order) with the paper's matching CL table.
 
     ``meta`` needs ``dataset``, ``methods`` and ``node`` (default ``"t"``); ``tasks`` is
-    mentioned when set. See the module docstring for the rules.
+    mentioned when set. ``key``: our score to rank by, ``CL_score`` or ``exec_CL_score``
+    (then the note is only the comparison's sentence, to follow the CL_score one). See the
+    module docstring for the rules.
     """
+    if key not in ("CL_score", "exec_CL_score"):
+        raise ValueError(f"key must be 'CL_score' or 'exec_CL_score', got {key!r}")
+    score_name = {"CL_score": "CL_score", "exec_CL_score": "exec CL_score"}[key]
+    by = score_name if key == "CL_score" else f"{score_name} (ACC and REM from execution)"
     from clfd_bench.metrics.paper_numbers import cl_table
 
     table, label = _paper_table(meta)
     if table is None:
         return PaperRanking(None, f"Paper: no paper CL table matches this grid ({label}).",
-                            reason=label)
+                            reason=label, key=key)
     dataset, variant = table
     paper = {m.lower(): row["CL_score"] for m, row in cl_table(dataset, variant).items()}
     ranks = {m: 1 + sum(other > score for other in paper.values()) for m, score in paper.items()}
     order = sorted(paper, key=lambda m: (ranks[m], list(paper).index(m)))
-    ours = {r.method.lower(): r.median("CL_score") for r in rows}
+    ours = {r.method.lower(): r.median(key) for r in rows}
     not_compared = [m for m in order if math.isnan(ours.get(m, math.nan))]
     swaps = []
     for i, ahead in enumerate(order):
@@ -190,9 +210,11 @@ def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
                          for r in shared)
         parts[0] += f", ties sharing a rank ({tied})"
     parts[0] += "."
+    if key != "CL_score":
+        parts = []
     if len(order) - len(not_compared) < 2:
         matches = up_to_ties = None
-        parts.append("Not enough CL_scores of ours to compare rankings.")
+        parts.append(f"Not enough {score_name}s of ours to compare rankings.")
     else:
         matches = not swaps
         up_to_ties = all(s["tie"] for s in swaps)
@@ -204,22 +226,22 @@ def paper_ranking(rows: list[MethodRow], meta: dict[str, Any]) -> PaperRanking:
             return text + (f", a tie (within {TIE})" if s["tie"] else "")
 
         if matches:
-            parts.append("Our ranking by CL_score equals the paper's.")
+            parts.append(f"Our ranking by {by} equals the paper's.")
         elif up_to_ties:
-            parts.append(f"Our ranking by CL_score equals the paper's up to ties (CL_scores "
+            parts.append(f"Our ranking by {by} equals the paper's up to ties (scores "
                          f"within {TIE} in ours or the paper's); swapped: "
                          + "; ".join(say(s) for s in swaps) + ".")
         else:
-            parts.append("Our ranking by CL_score differs from the paper's; swapped: "
+            parts.append(f"Our ranking by {by} differs from the paper's; swapped: "
                          + "; ".join(say(s) for s in swaps) + ".")
     if not_compared:
-        parts.append(f"Not compared (no CL_score of ours): "
+        parts.append(f"Not compared (no {score_name} of ours): "
                      f"{', '.join(m.upper() for m in not_compared)}.")
-    if meta.get("tasks"):
+    if meta.get("tasks") and key == "CL_score":
         parts.append(f"This grid learns only the first {meta['tasks']} tasks; the paper's "
                      "table, all of them.")
     return PaperRanking(label, " ".join(parts), table, None, ranks, paper, matches,
-                        up_to_ties, swaps, not_compared)
+                        up_to_ties, swaps, not_compared, key)
 
 
 NOT_PROVIDED = "—"
@@ -279,7 +301,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
         "Cells: median [IQR] over runs. ACC, REM, BWT: trajectory accuracy (DTW under the "
         "paper's threshold); exec ACC/REM/BWT: the same from executing predictions in "
         "simulation. CL_score/CL_stability over ACC, REM, MS, TE, FS, SSS (FS across the "
-        "methods compared here).",
+        "methods compared here); exec CL_score: CL_score with exec ACC and exec REM.",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
@@ -295,7 +317,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
         else:
             cells = [str(idx), row.method.upper(), runs, *cells]
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", paper.note]
+    lines += ["", paper.note + (f" {paper.executed.note}" if paper.executed else "")]
     named = [ENTRIES[m].describe() for m in meta["methods"] if m in ENTRIES]
     if named:  # their own NODE variant and settings, whatever the grid's
         lines += ["", "Named entries: " + "; ".join(named) + "."]
@@ -364,6 +386,8 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
     """Write ``leaderboard.md``, ``.csv`` and ``.json`` into ``out``; return their paths."""
     ranked = rank(rows)
     paper = paper_ranking(ranked, meta)
+    if paper.label and any(row.values.get("exec_CL_score") for row in ranked):
+        paper.executed = paper_ranking(ranked, meta, key="exec_CL_score")
     out.mkdir(parents=True, exist_ok=True)
     md, cs, js = out / "leaderboard.md", out / "leaderboard.csv", out / "leaderboard.json"
     atomic_write_text(md, _markdown(ranked, meta, paper))

@@ -14,8 +14,9 @@ does all of this). Tables:
   separate models.
 
 Each cell holds ours, the paper's (:func:`clfd_bench.metrics.paper_numbers.cl_table`) and
-ours − paper. Our execution success in simulation (exec ACC / REM, from ``sim_cl_metrics``)
-is added as columns the paper does not have (RoboTasks: the whole pose is executed, so both
+ours − paper. Our execution success in simulation (exec ACC / REM, from ``sim_cl_metrics``,
+and exec CL_score, CL_score with them in place of ACC and REM) is added as columns the paper
+does not have (RoboTasks: the whole pose is executed, so both
 tables show the same values). A method without finished runs shows "—" and its count of
 finished runs; nothing is filled in.
 
@@ -65,8 +66,9 @@ CL_COLUMNS: tuple[str, ...] = (
 )  # fmt: skip
 """The paper's CL table columns (same order as :data:`paper_numbers.CL_COLUMNS`)."""
 
-EXEC_COLUMNS: tuple[str, ...] = ("exec_ACC", "exec_REM")
-"""Our extra columns: ACC and REM of execution success in simulation."""
+EXEC_COLUMNS: tuple[str, ...] = ("exec_ACC", "exec_REM", "exec_CL_score")
+"""Our extra columns: ACC and REM of execution success in simulation, and CL_score with them
+in place of the trajectory ACC and REM."""
 
 DASH = "—"
 
@@ -346,13 +348,14 @@ def _markdown(tables: list[CLTable], times: list[TimeTable], meta: dict[str, Any
         "(as the paper's). Cells: **ours / paper (ours − paper)**; ours is the median over "
         "seeds. FS across the methods of each table, CL_score / CL_stability recomputed from "
         "the six criteria. exec ACC / exec REM: execution success in simulation (this "
-        f"project's addition; the paper has none). {DASH}: no finished run.",
+        "project's addition; the paper has none); exec CL_score: CL_score with them in place "
+        f"of ACC and REM. {DASH}: no finished run.",
     ]
     if meta["profile"] != "paper":
         lines += ["", f"Note: profile `{meta['profile']}` is not the paper's training budget "
                       "(`paper`), so differences to the paper are expected."]
     for t in tables:
-        head = ["method", "runs", *CL_COLUMNS, "exec ACC", "exec REM"]
+        head = ["method", "runs", *CL_COLUMNS, *(c.replace("exec_", "exec ") for c in EXEC_COLUMNS)]
         lines += ["", f"## {t.spec.title}", "",
                   "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for r in t.rows:
