@@ -175,3 +175,26 @@ def test_input_errors_are_explained():
         swept_area(a, np.zeros((4, 2)))
     with pytest.raises(ValueError, match="2-D or 3-D"):
         swept_area(np.zeros((5, 4)), np.zeros((5, 4)))
+
+
+def test_self_crossings_counts_the_loops_a_curve_draws():
+    from clfd_bench.metrics.trajectory import self_crossings
+
+    # A figure eight crosses itself once (at the origin, between samples here).
+    t = np.linspace(0.1, 2 * np.pi + 0.1, 1001)
+    assert self_crossings(np.c_[np.sin(t), np.sin(2 * t)]) == 1
+    # A prolate trochoid x = t - a sin t, y = -a cos t (a > 1) closes one loop around every
+    # t = 2 pi k; over [0, 6 pi] the loops at k = 1, 2 close (k = 0, 3 are cut in half).
+    t = np.linspace(0, 6 * np.pi, 3000)
+    assert self_crossings(np.c_[t - 2.0 * np.sin(t), -2.0 * np.cos(t)]) == 2
+    # a < 1: a wave without loops; a converging spiral never meets itself.
+    assert self_crossings(np.c_[t - 0.5 * np.sin(t), -0.5 * np.cos(t)]) == 0
+    r = np.exp(-0.2 * t)
+    assert self_crossings(np.c_[r * np.cos(t), r * np.sin(t)]) == 0
+    # Jitter while resting at the end crosses itself; min_step removes it.
+    rest = np.array([[1.0, 0.0], [1.0 + 1e-5, 1e-5], [1.0, 1e-5], [1.0 + 1e-5, 0.0]])
+    line = np.r_[np.c_[np.linspace(0, 1, 50), np.zeros(50)], rest]
+    assert self_crossings(line) == 1
+    assert self_crossings(line, min_step=1e-3) == 0
+    with pytest.raises(ValueError, match="planar"):
+        self_crossings(np.zeros((10, 3)))

@@ -33,6 +33,7 @@ __all__ = [
     "frechet_batch",
     "hausdorff",
     "nearest_distances",
+    "self_crossings",
     "swept_area",
     "swept_area_batch",
     "trajectory_errors",
@@ -334,6 +335,48 @@ def coverage(ref: np.ndarray, pred: np.ndarray, radius: float, by: str = "length
         if total > 0:
             return float(seg[inside[1:] & inside[:-1]].sum() / total)
     return float(np.mean(inside))
+
+
+def self_crossings(traj: np.ndarray, min_step: float = 0.0) -> int:
+    """How often a planar trajectory crosses itself: the loops it draws.
+
+    A time-invariant planar vector field (NODE^I on a 2-D dataset) cannot draw a crossing:
+    two solution curves, or one curve and itself, never meet. A letter written with a loop
+    ('e', 'd') crosses itself where the loop closes; a prediction that follows it without a
+    time input can only come close. Counts proper crossings of two non-adjacent segments of
+    the polyline (touching end points and collinear overlap do not count).
+
+    Args:
+        traj: ``[T, 2]`` points.
+        min_step: points closer than this to the last kept point are dropped first, so that
+            the jitter of a trajectory resting at its end does not count (arrays' length unit).
+
+    Returns:
+        The number of crossings.
+    """
+    p = _as_traj(traj, "traj")
+    if p.shape[1] != 2:
+        raise ValueError(f"self_crossings needs planar points [T, 2], got shape {p.shape}")
+    if min_step < 0:
+        raise ValueError(f"min_step must be >= 0, got {min_step}")
+    keep = [0]
+    for i in range(1, len(p)):
+        if np.linalg.norm(p[i] - p[keep[-1]]) > min_step:
+            keep.append(i)
+    p = p[keep]
+    if len(p) < 4:
+        return 0
+    a, b = p[:-1], p[1:]
+    d = b - a
+
+    def side(origin: np.ndarray, direction: np.ndarray, q: np.ndarray) -> np.ndarray:
+        rel = q[None, :, :] - origin[:, None, :]
+        return direction[:, None, 0] * rel[..., 1] - direction[:, None, 1] * rel[..., 0]
+
+    # [n, n]: where segment j's end points lie relative to segment i's line, and back.
+    s_a, s_b = side(a, d, a), side(a, d, b)
+    crosses = (s_a * s_b < 0) & (s_a.T * s_b.T < 0)
+    return int(np.triu(crosses, k=2).sum())
 
 
 def _quaternion_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
