@@ -26,6 +26,7 @@ STUDY_COMMANDS: tuple[str, ...] = (
     "study_sensitivity",
     "study_timing",
     "study_tasktime",
+    "study_loops",
 )
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench study <name>`` subcommand."""
 
@@ -55,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
             importlib.import_module(f"clfd_bench.cli.{name}").register(bench_sub)
     study = sub.add_parser(
         "study", help="the paper's studies: start robustness, task order, sensitivity, timing, "
-        "time per task"
+        "time per task, loops without a time input"
     )
     study_sub = study.add_subparsers(dest="study_command", metavar="STUDY", required=True,
                                      parser_class=_Parser)

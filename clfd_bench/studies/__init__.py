@@ -5,9 +5,13 @@
 - :mod:`~clfd_bench.studies.sensitivity`: robustness to the regularisation hyperparameters.
 - :mod:`~clfd_bench.studies.inference_timing`: hypernetwork → NODE generation, a NODE step, a
   1000-step trajectory.
+- :mod:`~clfd_bench.studies.task_time`: training time per task as tasks accrue.
+- :mod:`~clfd_bench.studies.loops`: loops with and without a time input (self-crossings,
+  DTW, execution per task).
 - :mod:`~clfd_bench.studies.paper_grid` / :mod:`~clfd_bench.studies.paper_tables`: the full
   paper grid and its tables next to the paper's own numbers
   (:mod:`~clfd_bench.metrics.paper_numbers`).
 
-Each has a command: ``clfd-bench study start|order|sensitivity|timing`` and ``clfd-bench paper``.
+Each has a command: ``clfd-bench study start|order|sensitivity|timing|tasktime|loops`` and
+``clfd-bench paper``.
 """
