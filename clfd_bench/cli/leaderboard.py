@@ -6,27 +6,13 @@ import argparse
 import os
 import sys
 
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names
 from clfd_bench.leaderboard.entries import entry_help
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
 
 ALL_METHODS = "sg,ft,rep,si,mas,hn,chn"
-
-
-def _ints(text: str) -> list[int]:
-    try:
-        return [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        msg = f"expected comma-separated integers, got {text!r}"
-        raise argparse.ArgumentTypeError(msg) from None
-
-
-def _names(text: str) -> list[str]:
-    """Comma-separated names, lower-cased; a plugin's import spec (``module:Class``) keeps
-    its case."""
-    names = (x.strip() for x in text.split(","))
-    return [x if ":" in x else x.lower() for x in names if x]
 
 
 def _config(text: str) -> tuple[str, str]:
@@ -36,18 +22,6 @@ def _config(text: str) -> tuple[str, str]:
         raise argparse.ArgumentTypeError(msg)
     method = method.strip()
     return (method if ":" in method else method.lower()), path.strip()
-
-
-def add_executor_arguments(
-    p: argparse.ArgumentParser, workers: int = 1, workers_help: str = "default 1"
-) -> None:
-    """``--executor``, ``--workers``, ``--address``: where a grid of training runs runs."""
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=workers,
-                   help=f"parallel local training processes ({workers_help})")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start a local Ray instance)")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -87,10 +61,7 @@ def _run(args: argparse.Namespace) -> int:
         f"{len(result.skipped)} already done, {len(result.failed)} failed "
         f"({result.seconds:.0f} s)"
     )
-    print((Path(args.out) / "leaderboard.md").read_text())
-    for path in result.files:
-        print(f"[leaderboard] wrote {path}")
-    return 1 if result.failed else 0
+    return finish("leaderboard", Path(args.out) / "leaderboard.md", result.files, result.failed)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -103,14 +74,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "writes leaderboard.md/.csv/.json and PNG figures into --out.",
     )
     p.add_argument("--dataset", required=True, help="lasa, helloworld, robotasks, robotasks9")
-    p.add_argument("--methods", type=_names, default=_names(ALL_METHODS),
+    p.add_argument("--methods", type=names, default=names(ALL_METHODS),
                    help=f"comma-separated CL methods (default {ALL_METHODS}); plugins by "
                         "name or as package.module:ClassName (docs/methods.md); "
                         f"{entry_help()} (a method with its own --node and settings, "
                         "docs/snode.md)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
-    p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
-    p.add_argument("--orders", type=_ints, default=[0], help="task orders (default 0)")
+    p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
+    p.add_argument("--orders", type=ints, default=[0], help="task orders (default 0)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")

@@ -21,7 +21,7 @@ import math
 import sys
 from pathlib import Path
 
-from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.cli.common import add_executor_arguments, ints, names, run_grid
 
 __all__ = ["register"]
 
@@ -143,13 +143,12 @@ def _tables(args: argparse.Namespace, specs=None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.config import resolve_config
-    from clfd_bench.leaderboard.runner import run_specs
-
     specs = _grid(args)
     for key in dict.fromkeys((s.method, s.dataset, s.profile) for s in specs):
         resolve_config(key[0], key[1], key[2])  # a missing profile table fails here, not later
-    grid = run_specs(specs, Path(args.out), args.executor, args.workers, args.address,
-                     desc="paper grid")
+    grid = run_grid("paper run", specs, args, desc="paper grid")
+    if grid is None:  # refused before anything was trained
+        return 2
     print(f"[paper] {len(specs)} runs: {len(grid.trained)} trained or resumed now, "
           f"{len(grid.skipped)} already done, {len(grid.failed)} failed")
     code = _tables(args, specs)
@@ -197,15 +196,15 @@ def _safe(func):
 
 
 def _add_grid_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--datasets", type=_names, default=None,
+    p.add_argument("--datasets", type=names, default=None,
                    help="comma-separated: lasa,helloworld,robotasks (default all)")
-    p.add_argument("--methods", type=_names, default=None,
+    p.add_argument("--methods", type=names, default=None,
                    help="comma-separated: sg,ft,rep,si,mas,hn,chn (default: the paper's for "
                         "each dataset; RoboTasks has no SI/MAS)")
-    p.add_argument("--nodes", type=_names, default=None,
+    p.add_argument("--nodes", type=names, default=None,
                    help="comma-separated t,i (default: the paper's; RoboTasks: t only)")
-    p.add_argument("--seeds", type=_ints, default=None, help="comma-separated (default 0-4)")
-    p.add_argument("--orders", type=_ints, default=None, help="task orders (default 0,1,2)")
+    p.add_argument("--seeds", type=ints, default=None, help="comma-separated (default 0-4)")
+    p.add_argument("--orders", type=ints, default=None, help="task orders (default 0,1,2)")
     p.add_argument("--profile", default="paper", help="paper (default), fast or smoke")
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true",
@@ -232,9 +231,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_executor_arguments(run)
     run.set_defaults(func=_safe(_run))
     sz = sub.add_parser("sizes", help="final model sizes and the FS they give, vs the paper's")
-    sz.add_argument("--datasets", type=_names, default=None,
+    sz.add_argument("--datasets", type=names, default=None,
                     help="comma-separated: lasa,helloworld,robotasks (default all)")
-    sz.add_argument("--methods", type=_names, default=None,
+    sz.add_argument("--methods", type=names, default=None,
                     help="comma-separated (default: the paper's for each dataset)")
     sz.add_argument("--profile", default="fast", help="paper, fast (default) or smoke")
     sz.add_argument("--tolerance", type=float, default=0.05,

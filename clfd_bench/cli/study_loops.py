@@ -7,7 +7,7 @@ import argparse
 import os
 import sys
 
-from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
 
 __all__ = ["register"]
 
@@ -17,8 +17,6 @@ PLANAR = ("helloworld", "lasa")
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from clfd_bench.harness.validate import USER_ERRORS
-    from clfd_bench.leaderboard.runner import run_specs
     from clfd_bench.studies.loops import study_specs, summarize, write_outputs
 
     if args.dataset not in PLANAR:
@@ -32,23 +30,15 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     specs = study_specs(args.dataset, args.methods, args.profile, args.seeds,
                         sim=not args.no_sim, tasks=args.tasks)
-    try:
-        grid = run_specs(specs, out, args.executor, args.workers, args.address,
-                         desc="loop study")
-    except USER_ERRORS as exc:  # checked before anything is trained
-        print(f"clfd-bench study loops: error: {exc}", file=sys.stderr)
+    grid = run_grid("study loops", specs, args, desc="loop study")
+    if grid is None:  # refused before anything was trained
         return 2
     study = summarize(grid.records, out, args.dataset, args.methods)
     meta = {"dataset": args.dataset, "profile": args.profile, "methods": args.methods,
             "seeds": args.seeds, "sim": not args.no_sim, "tasks": args.tasks,
             "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)}}
     files = write_outputs(study, out, meta)
-    print((out / "loops.md").read_text())
-    for path in files:
-        print(f"[study loops] wrote {path}")
-    for f in grid.failed:
-        print(f"[study loops] FAILED {f.spec.name}: {f.error}", file=sys.stderr)
-    return 1 if grid.failed else 0
+    return finish("study loops", out / "loops.md", files, grid.failed)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,10 +54,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--dataset", default="helloworld",
                    help=f"a planar dataset: {', '.join(PLANAR)} (default helloworld)")
-    p.add_argument("--methods", type=_names, default=_names("sg,ft,rep,si,mas,hn,chn"),
+    p.add_argument("--methods", type=names, default=names("sg,ft,rep,si,mas,hn,chn"),
                    help="comma-separated CL methods (default all seven)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
-    p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
+    p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", required=True,

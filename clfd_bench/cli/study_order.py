@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -48,11 +48,8 @@ def _run(args: argparse.Namespace) -> int:
         workers=args.workers,
         address=args.address,
     )
-    print((Path(args.out) / "order_table.md").read_text())
-    for path in result.files:
-        print(f"[study order] wrote {path}")
-    print(result.summary())
-    return 1 if result.failed else 0
+    return finish("study order", Path(args.out) / "order_table.md", result.files,
+                  result.failed, result.summary())
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -66,13 +63,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "exec ACC per dataset x order x method, and each method's spread across orders) and "
         "one figure per dataset, order_<dataset>.png, with one column per order.",
     )
-    p.add_argument("--datasets", type=_names, default=_names("lasa,helloworld,robotasks"),
+    p.add_argument("--datasets", type=names, default=names("lasa,helloworld,robotasks"),
                    help="comma-separated datasets (default lasa,helloworld,robotasks)")
-    p.add_argument("--methods", type=_names, default=_names("sg,rep,hn,chn"),
+    p.add_argument("--methods", type=names, default=names("sg,rep,hn,chn"),
                    help="comma-separated CL methods (default sg,rep,hn,chn, as in the paper)")
-    p.add_argument("--orders", type=_ints, default=[0, 1, 2],
+    p.add_argument("--orders", type=ints, default=[0, 1, 2],
                    help="comma-separated task orders (default 0,1,2)")
-    p.add_argument("--seeds", type=_ints, default=[0, 1, 2],
+    p.add_argument("--seeds", type=ints, default=[0, 1, 2],
                    help="comma-separated seeds (default 0,1,2)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _names, add_executor_arguments
+from clfd_bench.cli.common import add_executor_arguments, finish, names
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -58,11 +58,8 @@ def _run(args: argparse.Namespace) -> int:
         workers=args.workers,
         address=args.address,
     )
-    print((Path(args.out) / "sensitivity.md").read_text())
-    for path in result.files:
-        print(f"[study sensitivity] wrote {path}")
-    print(result.text())
-    return 1 if result.failed else 0
+    return finish("study sensitivity", Path(args.out) / "sensitivity.md", result.files,
+                  result.failed, result.text())
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -79,7 +76,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sensitivity.png.",
     )
     p.add_argument("--dataset", default="lasa", help="dataset (default lasa, as in the paper)")
-    p.add_argument("--methods", type=_names, default=_names("si,mas,hn,chn"),
+    p.add_argument("--methods", type=names, default=names("si,mas,hn,chn"),
                    help="comma-separated CL methods (default si,mas,hn,chn)")
     p.add_argument("--configs", type=int, default=5,
                    help="configurations drawn per method (default 5)")

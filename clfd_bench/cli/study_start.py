@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from clfd_bench.cli.leaderboard import _names
+from clfd_bench.cli.common import names
 
 __all__ = ["register"]
 
@@ -142,11 +142,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--run", action="append", metavar="DIR",
                    help="a trained RoboTasks or LASA run dir (repeatable; label = its method "
                         "and NODE variant)")
-    p.add_argument("--methods", type=_names, default=[],
+    p.add_argument("--methods", type=names, default=[],
                    help="comma list of methods to train here (--no-sim) and study")
     p.add_argument("--dataset", default="robotasks",
                    help="dataset of the runs trained here: robotasks (default) or lasa")
-    p.add_argument("--nodes", type=_names, default=["t"],
+    p.add_argument("--nodes", type=names, default=["t"],
                    help="NODE variants of the runs trained here, comma list of t, i, s "
                         "(default t)")
     p.add_argument("--profile", default="fast", help="profile of the runs trained here")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _ints, _names, add_executor_arguments
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -15,8 +15,6 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from clfd_bench.data import DATASETS
-    from clfd_bench.harness.validate import USER_ERRORS
-    from clfd_bench.leaderboard.runner import run_specs
     from clfd_bench.learning.hnet_reg import REG_MODES
     from clfd_bench.studies.task_time import study_specs, summarize, write_outputs
 
@@ -31,11 +29,8 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     specs = study_specs(args.dataset, args.methods, args.regs, args.profile, args.seeds,
                         args.node, args.tasks)
-    try:
-        grid = run_specs(specs, out, args.executor, args.workers, args.address,
-                         desc="task-time study")
-    except USER_ERRORS as exc:  # checked before anything is trained
-        print(f"clfd-bench study tasktime: error: {exc}", file=sys.stderr)
+    grid = run_grid("study tasktime", specs, args, desc="task-time study")
+    if grid is None:  # refused before anything was trained
         return 2
     labels = list(dict.fromkeys(s.label for s in specs))
     rows = summarize(grid.records, labels)
@@ -43,12 +38,7 @@ def _run(args: argparse.Namespace) -> int:
             "regs": args.regs, "seeds": args.seeds, "node": args.node, "tasks": args.tasks,
             "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)}}
     files = write_outputs(rows, out, meta)
-    print((out / "task_time.md").read_text())
-    for path in files:
-        print(f"[study tasktime] wrote {path}")
-    for f in grid.failed:
-        print(f"[study tasktime] FAILED {f.spec.name}: {f.error}", file=sys.stderr)
-    return 1 if grid.failed else 0
+    return finish("study tasktime", out / "task_time.md", files, grid.failed)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -62,12 +52,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".csv/.json and task_time.png: seconds per task and last / first.",
     )
     p.add_argument("--dataset", default="lasa", help="dataset (default lasa, 26 tasks)")
-    p.add_argument("--methods", type=_names, default=_names("hn,chn"),
+    p.add_argument("--methods", type=names, default=names("hn,chn"),
                    help="comma-separated hypernetwork methods (default hn,chn)")
-    p.add_argument("--regs", type=_names, default=_names("all,batched,sampled"),
+    p.add_argument("--regs", type=names, default=names("all,batched,sampled"),
                    help="comma-separated hnet_reg modes (default all,batched,sampled)")
     p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
-    p.add_argument("--seeds", type=_ints, default=[0], help="comma-separated seeds (default 0)")
+    p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figure)")

@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.leaderboard import _names
+from clfd_bench.cli.common import names
 
 __all__ = ["register"]
 
@@ -70,9 +70,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--out", default="studies/timing", help="output directory")
-    p.add_argument("--methods", type=_names, default=["hn", "chn"],
+    p.add_argument("--methods", type=names, default=["hn", "chn"],
                    help="comma-separated: hn, chn (default both)")
-    p.add_argument("--datasets", type=_names, default=["lasa", "helloworld", "robotasks"],
+    p.add_argument("--datasets", type=names, default=["lasa", "helloworld", "robotasks"],
                    help="comma-separated: lasa, helloworld, robotasks (default all three)")
     p.add_argument("--profile", default="paper",
                    help="profile whose sizes and prediction solver are used (default paper; "
