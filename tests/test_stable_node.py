@@ -320,3 +320,30 @@ def test_snode_keys_on_other_runs_and_bad_values_are_refused_in_one_line(capsys,
     refused(capsys, [*train, "--node", "s", "--set", "snode_eps=0"], tmp_path / "b",
             "snode_eps must be a finite number > 0")
     refused(capsys, [*train, "--node", "x"], tmp_path / "c", "invalid choice: 'x'")
+
+
+def test_a_datasets_snode_table_sets_that_dataset_alone(tmp_path):
+    """[fast.snode.robotasks.position] changes RoboTasks' (and RoboTasks9's) position model
+    and nothing else, after [fast.snode] and before --set; a misspelt dataset table fails."""
+    from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
+
+    own = tmp_path / "chn.toml"
+    base = baselines_file("chn").read_text()
+    own.write_text(base + "\n[fast.snode.robotasks.position]\nlr = 0.002\n")
+
+    def lr(dataset: str, part: str = "position", **kw) -> float:
+        return resolve_config("chn", dataset, "fast", node="s", config_file=own,
+                              **kw).part(part).lr
+
+    assert lr("robotasks") == lr("robotasks9") == 0.002
+    assert lr("robotasks", "orientation") == 0.003  # [fast.snode.orientation]
+    assert lr("lasa") == lr("helloworld") == 0.001  # [fast.snode]
+    assert lr("robotasks", overrides=["position.lr=0.0005"]) == 0.0005
+    assert resolve_config("chn", "robotasks", "fast", node="t", config_file=own).part(
+        "position").lr == 0.003  # NODE^T runs never read the snode tables
+    own.write_text(base + "\n[fast.snode.lasa]\nlr = 0.0007\n")
+    assert (lr("lasa"), lr("helloworld")) == (0.0007, 0.001)
+    own.write_text(base + "\n[fast.snode.robotask]\nlr = 0.002\n")
+    with pytest.raises(ConfigError, match=r"unknown sub-table 'robotask' \(did you mean "
+                                          r"'robotasks'\?\); valid: position, orientation, lasa"):
+        lr("robotasks")

@@ -8,8 +8,10 @@ optional ``[profile.snode]`` table. Values resolve as
 
     profile.defaults  <-  profile.<dataset>  <-  profile.<dataset>.<part>
         <-  baselines/snode.toml [profile]  <-  profile.snode  <-  profile.snode.<part>
-            (the last three: --node s only; <part> is position or orientation on every
-            dataset, e.g. profile.snode.position also sets LASA's model)
+            <-  profile.snode.<dataset>  <-  profile.snode.<dataset>.<part>
+            (the last five: --node s only; <part> is position or orientation on every
+            dataset, e.g. profile.snode.position also sets LASA's model, while
+            profile.snode.robotasks.position sets RoboTasks' position model alone)
         <-  --set overrides
 
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
@@ -532,23 +534,36 @@ def resolve_config(
             own_snode = table.get(SNODE_TABLE, {})
             layers.append((SNODE_TABLE, own_snode))
             layers.append((f"{SNODE_TABLE}.{part}", own_snode.get(part, {})))
+            # robotasks9 reads the robotasks sNODE table unless it has its own
+            snode_ds = (dataset if dataset in own_snode or dataset not in POSE_DATASETS
+                        else "robotasks")
+            ds_snode = own_snode.get(snode_ds, {})
+            layers.append((f"{SNODE_TABLE}.{snode_ds}", ds_snode))
+            if is_pose:
+                layers.append((f"{SNODE_TABLE}.{snode_ds}.{part}", ds_snode.get(part, {})))
         for layer_name, layer in layers:
             layer_src = sources.get(layer_name)
             table_text = profile if layer_src else f"{profile}.{layer_name}"
             where = f"{(layer_src or src).label} [{table_text}]"
             for key, value in layer.items():
+                snode_ds_layer = layer_name in {f"{SNODE_TABLE}.{d}" for d in DATASET_TABLES}
                 if key in PARTS_POSE and isinstance(value, dict):
-                    if layer_name not in (source, SNODE_TABLE):
+                    if layer_name not in (source, SNODE_TABLE) and not snode_ds_layer:
                         raise ConfigError(
                             f"{where}: the [{key}] sub-table is only read under "
-                            f"[{profile}.<dataset>] and [{profile}.{SNODE_TABLE}]; move its "
-                            f"keys there")
+                            f"[{profile}.<dataset>], [{profile}.{SNODE_TABLE}] and "
+                            f"[{profile}.{SNODE_TABLE}.<dataset>]; move its keys there")
                     if not is_pose and layer_name != SNODE_TABLE:
                         raise ConfigError(f"{where}: [{key}] tables only exist for pose data")
                     continue  # read as its own layer
+                if layer_name == SNODE_TABLE and key in DATASET_TABLES and isinstance(value,
+                                                                                      dict):
+                    continue  # a dataset's sNODE table: its own layer when that dataset runs
                 if isinstance(value, dict):
-                    raise ConfigError(f"{where}: unknown sub-table {key!r}; valid: "
-                                      f"{', '.join(PARTS_POSE)}")
+                    valid = (*PARTS_POSE, *DATASET_TABLES) if layer_name == SNODE_TABLE \
+                        else PARTS_POSE
+                    raise ConfigError(f"{where}: unknown sub-table {key!r}"
+                                      f"{suggest(key, valid)}; valid: {', '.join(valid)}")
                 if key in _DOC_KEYS:
                     continue
                 if key not in PART_FIELDS and key not in own_rules:
