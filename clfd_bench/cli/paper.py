@@ -21,7 +21,7 @@ import math
 import sys
 from pathlib import Path
 
-from clfd_bench.cli.common import add_executor_arguments, ints, names, run_grid
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
 
 __all__ = ["register"]
 
@@ -114,9 +114,6 @@ def _tables(args: argparse.Namespace, specs=None) -> int:
     }
     files = write_outputs(tables, times, out, meta)
     done = sum(r.status == "done" for r in records)
-    print((out / "paper_tables.md").read_text())
-    for path in files:
-        print(f"[paper] wrote {path}")
     # one-paragraph summary
     diffs = [abs(r.diff(c)) for t in tables for r in t.rows for c in ("ACC", "REM", "CL_score")
              if math.isfinite(r.diff(c))]
@@ -133,7 +130,7 @@ def _tables(args: argparse.Namespace, specs=None) -> int:
     if done < len(records):
         summary += (f". {len(records) - done} run(s) missing: `clfd-bench paper run` with the "
                     "same flags trains them")
-    print(summary + ".")
+    finish("paper", out / "paper_tables.md", files, summary=summary + ".")
     if done == 0:
         print(f"clfd-bench paper tables: no finished runs under {out}/runs for this selection; "
               f"run `clfd-bench paper run [same flags] --out {out}`", file=sys.stderr)
@@ -143,6 +140,7 @@ def _tables(args: argparse.Namespace, specs=None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.config import resolve_config
+
     specs = _grid(args)
     for key in dict.fromkeys((s.method, s.dataset, s.profile) for s in specs):
         resolve_config(key[0], key[1], key[2])  # a missing profile table fails here, not later

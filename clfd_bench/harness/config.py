@@ -527,6 +527,7 @@ def resolve_config(
         if is_pose:
             layers.append((f"{source}.{part}", table[source].get(part, {})))
         sources = {}
+        snode_ds_layer: str | None = None  # the layer name of the dataset's sNODE table
         if node == "s":
             shared, shared_src = _snode_profile(profile)
             layers.append((SNODE_FILE, shared))
@@ -538,7 +539,8 @@ def resolve_config(
             snode_ds = (dataset if dataset in own_snode or dataset not in POSE_DATASETS
                         else "robotasks")
             ds_snode = own_snode.get(snode_ds, {})
-            layers.append((f"{SNODE_TABLE}.{snode_ds}", ds_snode))
+            snode_ds_layer = f"{SNODE_TABLE}.{snode_ds}"
+            layers.append((snode_ds_layer, ds_snode))
             if is_pose:
                 layers.append((f"{SNODE_TABLE}.{snode_ds}.{part}", ds_snode.get(part, {})))
         for layer_name, layer in layers:
@@ -546,9 +548,8 @@ def resolve_config(
             table_text = profile if layer_src else f"{profile}.{layer_name}"
             where = f"{(layer_src or src).label} [{table_text}]"
             for key, value in layer.items():
-                snode_ds_layer = layer_name in {f"{SNODE_TABLE}.{d}" for d in DATASET_TABLES}
                 if key in PARTS_POSE and isinstance(value, dict):
-                    if layer_name not in (source, SNODE_TABLE) and not snode_ds_layer:
+                    if layer_name not in (source, SNODE_TABLE, snode_ds_layer):
                         raise ConfigError(
                             f"{where}: the [{key}] sub-table is only read under "
                             f"[{profile}.<dataset>], [{profile}.{SNODE_TABLE}] and "
@@ -556,10 +557,10 @@ def resolve_config(
                     if not is_pose and layer_name != SNODE_TABLE:
                         raise ConfigError(f"{where}: [{key}] tables only exist for pose data")
                     continue  # read as its own layer
-                if layer_name == SNODE_TABLE and key in DATASET_TABLES and isinstance(value,
-                                                                                      dict):
+                is_table = isinstance(value, dict)
+                if is_table and layer_name == SNODE_TABLE and key in DATASET_TABLES:
                     continue  # a dataset's sNODE table: its own layer when that dataset runs
-                if isinstance(value, dict):
+                if is_table:
                     valid = (*PARTS_POSE, *DATASET_TABLES) if layer_name == SNODE_TABLE \
                         else PARTS_POSE
                     raise ConfigError(f"{where}: unknown sub-table {key!r}"
