@@ -10,7 +10,7 @@ import pytest
 
 from clfd_bench.data import load_dataset
 from clfd_bench.execution.env_pool import get_env
-from clfd_bench.execution.execute import execute_predictions
+from clfd_bench.execution.execute import execute, execute_predictions
 from clfd_bench.execution.scoring import sim_fields
 from clfd_bench.execution.trace import tool_path
 
@@ -36,12 +36,19 @@ def test_true_demo_succeeds_reversed_demo_fails(letter_h):
     assert bad[0].failure_kind == "reflex"
     assert bad[0].failure_reason.startswith("reflex: cartesian velocity")
     assert "at step 0" in bad[0].failure_reason
-    # Executed to the end but the wrong shape: the task's own criterion says no.
+    # The wrong shape: the task's own criterion says no, as soon as the ink leaves the letter's
+    # tolerance tube (the rollout stops there) ...
     mirrored = letter_h[1, ::-1] + letter_h[1, 0] - letter_h[1, -1]  # reversed, same start
     (wrong,) = execute_predictions("helloworld", "h", mirrored[None], demos=[1])
     assert not wrong.success and wrong.failure_kind == "task"
-    assert wrong.failure_reason.startswith("task not achieved")
-    assert "dtw=" in wrong.failure_reason
+    assert wrong.failure_reason.startswith("task failed, decided after")
+    assert "Hausdorff tolerance" in wrong.failure_reason and wrong.steps < 1060
+    # ... or, executed to the end, with every measure of the ink.
+    env = get_env("clfd/HelloWorld-h-v2")
+    full = execute(env, mirrored, 1, stop_when_decided=False)
+    assert not full.success and full.failure_kind == "task" and full.steps == 1060
+    assert full.failure_reason.startswith("task not achieved")
+    assert "dtw=" in full.failure_reason
 
 
 def test_env_is_reused_between_calls():

@@ -53,6 +53,8 @@ Hooks for subclasses (all optional except those marked *):
 - `_is_success(final: bool) -> bool`: `final` is True on the episode's last step and in
   `evaluate()`; cheap checks may ignore it, expensive ones may only run when it is True.
 - `_task_info() -> dict`: extra info entries.
+- `decided_failure() -> dict | None`: a failure the task's criterion has already decided,
+  whatever the rest of the episode does (default: never; see the method).
 - `trajectory_to_actions(traj [T, D]) -> [T, A]`: dataset units -> actions (default: 7-D
   poses, gripper closed).
 - `dataset`, `task_name` (class/instance attributes) and `demo_trajectory(j)`: the demos
@@ -467,6 +469,25 @@ class PandaEnv(gym.Env):
         if self._failure_reason is None:
             self._last_success = bool(self._is_success(final=True))
         return self._info()
+
+    def decided_failure(self) -> dict[str, Any] | None:
+        """A task failure already certain, whatever the remaining steps of the episode do, or
+        None.
+
+        Lets a harness stop a rollout as soon as its outcome is known
+        (`clfd_bench.execution.rollout.rollout(stop_when_decided=True)`): once this is not
+        None, `_is_success(final=True)` is False at every later step up to the horizon, so
+        stopping changes no success decision. It assumes the episode runs to `horizon` (as a
+        rollout does) and stays set until the next `reset`. Default: None (the task decides at
+        the end); tasks with a monotone check override it (the writing envs: ink outside the
+        shape's tolerance, too many steps with the pen off the board).
+
+        Returns:
+            None, or {check: the criterion's check that failed, step: the step it was decided
+            at (from 0), value, bound (the measured value and the bound it broke, the
+            criterion's units), reason: a sentence}.
+        """
+        return None
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

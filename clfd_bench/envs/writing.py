@@ -53,6 +53,13 @@ SETTLE_STEPS = 60
 #: Cameras (`framing_camera`): elevation in degrees, low enough that the hand (16 cm above the
 #: pen tip) shows mostly above the shape on the image rather than over it.
 CAMERA_ELEVATION = -30.0
+#: Shape envs check new ink against the target's tolerance tube in batches of this many inked
+#: steps (`_ShapeEnv.decided_failure`): a failure is known at most this many steps late, for
+#: about the cost of one query per batch.
+DECIDE_BATCH = 8
+#: Relative margin of the early Hausdorff decision: a point counts as outside only beyond
+#: tolerance × (1 + this), so a float difference from the final check can never flip a success.
+DECIDE_MARGIN = 1e-9
 #: Keys of `tasks/writing.toml` [tolerances] (the derivation procedure's constants).
 TOLERANCE_KEYS = ("hausdorff_factor", "hausdorff_floor", "coverage_fraction", "coverage_factor",
                   "coverage_floor", "dwell_factor", "dwell_cap")
@@ -423,6 +430,10 @@ class _ShapeEnv(_WritingBase):
         self.demos = demos
         self.offset = self._offset(demos)
         self.tolerances = load_tolerances(self.dataset, name)
+        self._trees: dict[int, Any] = {}  # demo -> k-d tree of its target (data units)
+        self._pending: list[tuple[int, np.ndarray]] = []  # (step, surface xy) ink not checked
+        self._off_board = 0
+        self._early: dict[str, Any] | None = None
         super().__init__(render_mode, **kwargs)
         from clfd_bench.metrics.thresholds import threshold
 
@@ -477,6 +488,73 @@ class _ShapeEnv(_WritingBase):
     def _framed_points(self) -> np.ndarray:
         return self.to_surface(self.demos.reshape(-1, 2))
 
+    # -- failures decided before the end (`decided_failure`)
+    def _reset_task(self, demo: int) -> None:
+        super()._reset_task(demo)
+        self._pending, self._off_board, self._early = [], 0, None
+
+    def _after_step(self) -> None:
+        super()._after_step()
+        if self._early is not None:
+            return
+        step = len(self._ink_flags) - 1
+        if self._ink_flags[-1]:
+            self._pending.append((step, self._ink_xy[-1]))
+            if len(self._pending) >= DECIDE_BATCH:
+                self._check_pending()
+            return
+        # At the horizon the ink fraction is inked / horizon <= (horizon - off) / horizon.
+        self._off_board += 1
+        h, least = self.horizon, self.wspec.min_ink_fraction
+        if (h - self._off_board) / h < least:
+            self._early = {
+                "check": "ink_fraction", "step": step, "value": (h - self._off_board) / h,
+                "bound": least,
+                "reason": f"the pen was off the board for {self._off_board} of the episode's "
+                          f"{h} steps by step {step}: the ink fraction stays below {least:g}"}
+
+    def _check_pending(self) -> None:
+        """Checks the pending ink points against the target: the criterion's Hausdorff distance
+        is at least the distance of any ink point to the target, so one point beyond the
+        tolerance decides the failure."""
+        from scipy.spatial import cKDTree
+
+        steps = [k for k, _ in self._pending]
+        points = self.to_data(np.array([xy for _, xy in self._pending]))
+        self._pending = []
+        tree = self._trees.get(self.demo)
+        if tree is None:
+            tree = self._trees[self.demo] = cKDTree(self.target())
+        dist = np.asarray(tree.query(points, k=1)[0], dtype=float)
+        bound = self.tolerances.hausdorff
+        out = np.flatnonzero(dist > bound * (1.0 + DECIDE_MARGIN))
+        if out.size:
+            k = int(out[0])
+            self._early = {
+                "check": "hausdorff", "step": steps[k], "value": float(dist[k]),
+                "bound": bound,
+                "reason": f"ink at step {steps[k]} lies {dist[k]:.4g} {self.data_units} from the "
+                          f"target, beyond the shape's Hausdorff tolerance {bound:.4g}"}
+
+    def decided_failure(self) -> dict[str, Any] | None:
+        """The ink already breaks a check no later ink can mend, or None: a point farther than
+        `tolerances.hausdorff` from the target (the symmetric Hausdorff distance can only grow
+        as ink is added; checked in batches of `DECIDE_BATCH` inked steps), or so many steps
+        with the pen off the board that the ink fraction at the horizon stays below
+        `min_ink_fraction`. See `PandaEnv.decided_failure`."""
+        return None if self._early is None else dict(self._early)
+
+    def _task_state(self) -> dict[str, Any]:
+        state = super()._task_state()
+        state.update(pending=list(self._pending), off_board=self._off_board,
+                     early=None if self._early is None else dict(self._early))
+        return state
+
+    def _restore_task_state(self, state: dict[str, Any]) -> None:
+        super()._restore_task_state(state)
+        self._pending, self._off_board = list(state["pending"]), int(state["off_board"])
+        self._early = state["early"]
+
     def _decide(self) -> dict[str, Any]:
         frac = self._ink_fraction()
         out = judge_shape(self.to_data(self.ink_trace()), self.to_data(self.pen_path()),
@@ -484,6 +562,10 @@ class _ShapeEnv(_WritingBase):
                           self.wspec.goal_tolerance / self.sim_scale)
         if frac < self.wspec.min_ink_fraction:
             out["failed"].insert(0, "ink_fraction")
+        if self._early is not None:  # decided before the end (only a partial episode lacks it)
+            if self._early["check"] not in out["failed"]:
+                out["failed"].insert(0, self._early["check"])
+            out["decided_failure"] = dict(self._early)
         out.update(ink_fraction=frac, is_success=not out["failed"],
                    dtw_threshold=self.dtw_threshold,
                    tolerances=dataclasses.asdict(self.tolerances))

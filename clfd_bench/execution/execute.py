@@ -34,7 +34,7 @@ __all__ = ["FAILURE_KINDS", "ExecResult", "execute", "execute_predictions", "fai
 FAILURE_KINDS = ("reflex", "tracking", "unreachable", "collision", "blowup", "diverged", "task")
 #: info keys every env reports; the others are task-specific and explain a failure.
 _BASE_INFO_KEYS = frozenset({"is_success", "tracking_error", "ik_error", "demo", "step",
-                             "failure_reason", "failure"})
+                             "failure_reason", "failure", "stopped_early"})
 
 
 @dataclasses.dataclass
@@ -50,9 +50,11 @@ class ExecResult:
         failure_reason: None on success; else why: the env's own reason for ending the episode
             (a motion limit, tracking, reach, collision or physics blow-up, naming the limit
             and the step), or "task not achieved" with the env's task-specific info (e.g. DTW
-            of the ink, ink fraction, lid angle).
+            of the ink, ink fraction, lid angle), or "task failed, decided after k of H steps"
+            when the rollout stopped on a decided failure (``stop_when_decided``).
         failure_kind: None on success; else one of :data:`FAILURE_KINDS`.
-        steps: env steps run (trajectory + settling).
+        steps: env steps run (trajectory + settling; fewer when the rollout stopped on a
+            decided failure, see ``execute``).
         wall_s: wall-clock seconds of the rollout.
         info: the env's final info, JSON-safe (non-finite floats become None).
         trace: the step-by-step :class:`Trace` when requested, else None.
@@ -96,6 +98,10 @@ def _failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
         return None
     if info.get("failure_reason"):
         return str(info["failure_reason"])
+    stopped = info.get("stopped_early")
+    if isinstance(stopped, Mapping):
+        return (f"task failed, decided after {stopped['stopped_at']} of {stopped['horizon']} "
+                f"steps (the rollout stopped there): {stopped['reason']}")
     parts = []
     for key, value in info.items():
         if key in _BASE_INFO_KEYS:
@@ -127,7 +133,8 @@ def failure_kind(success: bool, info: Mapping[str, Any]) -> str | None:
 
 def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
             record: bool = False, trace: bool = False, settle_s: float | None = None,
-            fps: float = 30.0, frame_hook: FrameHook | None = None) -> ExecResult:
+            fps: float = 30.0, frame_hook: FrameHook | None = None,
+            stop_when_decided: bool | None = None) -> ExecResult:
     """Executes one trajectory in ``env`` from demo ``demo``'s start.
 
     Args:
@@ -142,6 +149,10 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
         settle_s: seconds of settling after the trajectory (default: the rollout's).
         frame_hook: stream frames of a custom renderer (e.g. with paths drawn) to a sink
             instead; works with an env made without rendering.
+        stop_when_decided: stop the rollout once the env has decided a failure (see
+            :func:`clfd_bench.execution.rollout.rollout`): same success, fewer steps; its
+            failure kind is then ``task``. Default: on, except when recording, tracing or
+            streaming frames (those show the whole rollout).
 
     Returns:
         An :class:`ExecResult`.
@@ -151,7 +162,10 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
     wrapped = tracer(env, frame_hook) if (trace or frame_hook is not None) else env
     kwargs: dict[str, Any] = {} if settle_s is None else {"settle_s": float(settle_s)}
     t0 = time.perf_counter()
-    res = rollout(wrapped, trajectory, demo=int(demo), record=record, fps=fps, **kwargs)
+    if stop_when_decided is None:
+        stop_when_decided = not (record or trace or frame_hook is not None)
+    res = rollout(wrapped, trajectory, demo=int(demo), record=record, fps=fps,
+                  stop_when_decided=stop_when_decided, **kwargs)
     wall = time.perf_counter() - t0
     err = res.tracking_error_pos[np.isfinite(res.tracking_error_pos)]
     rot = res.tracking_error_rot[np.isfinite(res.tracking_error_rot)]

@@ -28,6 +28,8 @@ class RolloutResult:
         ee_path: [T, 3] tracked frame position after each trajectory step (NaN after an
             early end).
         steps: number of env steps run (trajectory + settling).
+        stopped_early: with `stop_when_decided`, the env's `decided_failure()` when the rollout
+            stopped on it before the horizon, else None.
     """
 
     success: bool
@@ -37,6 +39,7 @@ class RolloutResult:
     frames: list[np.ndarray] | None
     ee_path: np.ndarray
     steps: int
+    stopped_early: dict[str, Any] | None = None
 
 
 def _unwrap(env: gym.Env) -> PandaEnv:
@@ -48,7 +51,7 @@ def _unwrap(env: gym.Env) -> PandaEnv:
 
 def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
             settle_s: float = DEFAULT_SETTLE_S, record: bool = False, fps: float = 30.0,
-            seed: int | None = None) -> RolloutResult:
+            seed: int | None = None, stop_when_decided: bool = False) -> RolloutResult:
     """Runs `trajectory` through `env` at the data rate (one sample per 60 Hz step), then the
     env's settle actions for `settle_s` (RoboTasks: gripper opens; writing: pen holds), then
     decides success.
@@ -64,6 +67,12 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
         record: render frames (needs `render_mode="rgb_array"`).
         fps: frame rate of the recording (every round(60 / fps)-th step is rendered).
         seed: reset seed.
+        stop_when_decided: stop as soon as the env reports a failure its criterion has
+            already decided (`PandaEnv.decided_failure`, e.g. writing: ink outside the shape's
+            tolerance). The success decision is the one the full rollout would give (False);
+            `info` then holds the partial episode's measures and `decided_failure`, and the
+            failure kind is the task's even if the full rollout would have hit a motion limit
+            later. Ignored with `record` (a video shows the whole rollout).
 
     Returns:
         A `RolloutResult`.
@@ -85,6 +94,8 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
     ee_path = np.full((T, 3), np.nan)
     steps = 0
     ended = False
+    stop = stop_when_decided and not record
+    decided: dict[str, Any] | None = None
     for t in range(T):
         obs, _, terminated, truncated, info = env.step(actions[t])
         steps += 1
@@ -95,6 +106,9 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
         if terminated or truncated:
             ended = True
             break
+        if stop and (decided := base.decided_failure()) is not None:
+            ended = True
+            break
     if not ended and settle_steps:
         for action in base.settle_actions(actions[-1], settle_steps):
             _, _, terminated, truncated, info = env.step(action)
@@ -103,7 +117,12 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
                 frames.append(env.render())
             if terminated or truncated:
                 break
+            if stop and (decided := base.decided_failure()) is not None:
+                break
     info = base.evaluate()
+    if decided is not None:
+        info["is_success"] = False  # decided: the full rollout's answer (the env's own too)
+        info["stopped_early"] = dict(decided, horizon=horizon, stopped_at=steps)
     return RolloutResult(success=bool(info["is_success"]), tracking_error_pos=err_pos,
                          tracking_error_rot=err_rot, info=info, frames=frames, ee_path=ee_path,
-                         steps=steps)
+                         steps=steps, stopped_early=decided)
