@@ -630,6 +630,12 @@ class HelloWorldLetterEnv(_ShapeEnv):
     fail. `info` reports `ink_fraction`, `dtw`, `hausdorff`, `coverage`, `goal_distance` (m),
     `dwell`, `failed` (the names of the failed checks), `dtw_threshold` and `tolerances`.
 
+    Two checks can only get worse as the episode goes on, and `decided_failure()` reports them
+    as soon as they break (the episode itself still runs to its horizon): an ink point farther
+    than the `hausdorff` tolerance from the target, or so many steps off the board that the ink
+    fraction stays below 90 %. `clfd_bench.execution.execute` stops a rollout there (same
+    success; `docs/execution.md`, section 3).
+
     ## Arguments
 
     `letter` (h, e, l, o, w, r, d), `render_mode` (None | "rgb_array"), `physics_dt` (1/240 s),
@@ -699,7 +705,8 @@ class LasaShapeEnv(_ShapeEnv):
     [tolerances]; the floors are 1.5 cm and 1 cm on the board, i.e. 5.0 and 3.3 units; values
     in `tasks/writing_tolerances.toml`). `info` reports `ink_fraction`, `dtw`, `hausdorff`,
     `coverage`, `goal_distance`, `dwell` (LASA units), `failed`, `dtw_threshold` and
-    `tolerances`.
+    `tolerances`. Failures decided before the end are reported by `decided_failure()` as for
+    the letters.
 
     Limits: for `Line` a straight line from start to goal is the shape itself, so a straight
     stroke drawn at the demo's pace succeeds, as does the "mirrored" path (it stays on the same

@@ -10,8 +10,10 @@ frame, measured after each trajectory step.
 
 Every failure has a kind (:data:`FAILURE_KINDS`): the env's executability checks (``reflex``,
 ``tracking``, ``unreachable``, ``collision``), a physics ``blowup``, a prediction that
-``diverged`` (NaN/inf, not executed), or ``task`` (executed to the end, but the task's success
-criterion said no).
+``diverged`` (NaN/inf, not executed), or ``task`` (the task's success criterion said no: at
+the end, or as soon as the env decided it, :meth:`clfd_bench.envs.base.PandaEnv.decided_failure`;
+a rollout that stops there does not meet a motion limit it would have broken later). An
+execution counts its first failure.
 """
 
 from __future__ import annotations

@@ -349,7 +349,9 @@ def _failure_table(rows: list[MethodRow]) -> list[str]:
     lines = ["", "## Executions that failed, by kind", "",
              "Counts over every executed prediction of the method's runs: reflex, tracking, "
              "unreachable and collision are commands the real Panda would refuse or could not "
-             "follow; task: executed to the end, but the task was not achieved.", ""]
+             "follow; task: the task was not achieved (writing: the rollout stops once that is "
+             "decided, so a later refusal is not counted). Each execution counts its first "
+             "failure.", ""]
     if not kinds:
         return lines + ["No execution failed."]
     lines += ["| method | " + " | ".join(kinds) + " |", "|" + "---|" * (len(kinds) + 1)]
