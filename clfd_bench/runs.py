@@ -421,13 +421,18 @@ class RunDir:
         trained = int(results.get("tasks_done") or 0)
         sim_doc = results.get("sim") or {}
         executed = None
+        stale = None  # the other simulator's fingerprint the executions were made by
         if sim:
             executed = int(sim_doc.get("evaluated_tasks") or 0)
-            if results.get("success") is None or (
-                    fingerprint is not None and sim_doc.get("fingerprint") != fingerprint):
+            if results.get("success") is None:
                 executed = 0
+            elif fingerprint is not None and sim_doc.get("fingerprint") != fingerprint:
+                stale, executed = str(sim_doc.get("fingerprint")), 0
         if not results.get("complete") or trained < tasks:
             reason = f"trained {trained}/{tasks} tasks"
+        elif stale is not None:
+            reason = (f"executed by simulator {stale}, but this one is {fingerprint} (its "
+                      "files changed since): run it again to re-execute the predictions")
         elif sim and executed != trained:
             reason = f"executed {executed}/{trained} tasks in simulation"
         else:

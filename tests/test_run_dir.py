@@ -39,6 +39,7 @@ def test_status_needs_every_stage_of_every_task(tmp_path):
     assert run.status(2, sim=True, fingerprint="f1").state == "done"
     st = run.status(2, sim=True, fingerprint="f2")  # executed by another simulator
     assert st.state == "partial" and st.executed == 0
+    assert "executed by simulator f1, but this one is f2" in st.reason  # says why, not "0/2"
     run.mark_failed({"error": "boom"})
     assert run.status(2, sim=True, fingerprint="f2").state == "failed"
     assert run.failure()["error"] == "boom"

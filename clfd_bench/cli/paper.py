@@ -150,6 +150,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"[paper] {len(specs)} runs: {len(grid.trained)} trained or resumed now, "
           f"{len(grid.skipped)} already done, {len(grid.failed)} failed")
     code = _tables(args, specs)
+    for outcome in grid.failed:
+        print(f"[paper] FAILED {outcome.spec.name}: {outcome.error}", file=sys.stderr)
     return 1 if grid.failed else code
 
 

@@ -17,9 +17,9 @@ from itertools import product
 from pathlib import Path
 from typing import Any
 
-from clfd_bench.runs import RunDir
+from clfd_bench.runs import RunDir, RunStatus
 
-__all__ = ["RunSpec", "make_grid", "run_status"]
+__all__ = ["RunSpec", "make_grid", "run_state", "run_status"]
 
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -190,13 +190,21 @@ def make_grid(
     return specs
 
 
-def run_status(spec: RunSpec, root: Path) -> str:
-    """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``
-    (:meth:`clfd_bench.runs.RunDir.status`; with simulation, executions by another simulator
-    version do not count)."""
+def run_state(spec: RunSpec, root: Path) -> RunStatus:
+    """Where the run of ``spec`` under ``root`` stands (:meth:`clfd_bench.runs.RunDir.status`),
+    with what is left to do in words. With simulation, executions by another simulator
+    version do not count; the simulator's fingerprint is read from its files now, so a file
+    edited while a grid runs is seen."""
     fingerprint = None
     if spec.sim:
         from clfd_bench.execution.fingerprint import sim_fingerprint
 
+        sim_fingerprint.cache_clear()
         fingerprint = sim_fingerprint()
-    return RunDir(spec.run_dir(root)).status(spec.num_tasks(), spec.sim, fingerprint).state
+    return RunDir(spec.run_dir(root)).status(spec.num_tasks(), spec.sim, fingerprint)
+
+
+def run_status(spec: RunSpec, root: Path) -> str:
+    """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``
+    (:func:`run_state`)."""
+    return run_state(spec, root).state

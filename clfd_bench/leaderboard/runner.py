@@ -8,7 +8,7 @@ from pathlib import Path
 
 from clfd_bench.leaderboard.aggregate import MethodRow, RunRecord, aggregate
 from clfd_bench.leaderboard.executors import RunOutcome, execute_grid
-from clfd_bench.leaderboard.grid import RunSpec, make_grid, run_status
+from clfd_bench.leaderboard.grid import RunSpec, make_grid, run_state, run_status
 from clfd_bench.leaderboard.plots import plot_all
 from clfd_bench.leaderboard.report import write_tables
 from clfd_bench.progress import progress
@@ -96,8 +96,8 @@ def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
     records = []
     for spec in specs:
         run = RunDir(spec.run_dir(out))
-        status = run_status(spec, out)
-        error = None
+        state = run_state(spec, out)
+        status, error = state.state, state.reason or None
         if status == "failed":
             error = str((run.failure() or {}).get("error", "failed (no readable failed.json)"))
         results = None
@@ -208,7 +208,19 @@ def _run_specs(specs: list[RunSpec], out: Path, executor: str, workers: int,
             execute_grid(todo, out, executor, workers, address, on_done)
         finally:
             bar.close()
-    return GridRun(specs, todo, skipped, failed, collect(specs, out))
+    # A run can end without a crash and still not count: e.g. its predictions were executed
+    # by a simulator whose files have changed since. Such a run must not vanish from the
+    # table in silence: it is a failure of the grid, with the reason.
+    crashed = {o.spec.name for o in failed}
+    records = []
+    for record in collect(specs, out):
+        if record.status not in ("done", "failed"):
+            record = RunRecord(record.spec, "failed", None,
+                               f"ended but does not count: {record.error}")
+        if record.status == "failed" and record.spec.name not in crashed:
+            failed.append(RunOutcome(record.spec, False, record.error, 0.0))
+        records.append(record)
+    return GridRun(specs, todo, skipped, failed, records)
 
 
 def run_leaderboard(
