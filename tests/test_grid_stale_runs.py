@@ -53,3 +53,30 @@ def test_runs_executed_by_a_changed_simulator_fail_the_grid_then_resume(
     done = json.loads(results.read_text())
     assert done["sim"]["fingerprint"] == sim_fingerprint()
     assert done["train_time_s"] == trained
+
+
+def test_collect_reads_the_simulator_files_again(tmp_path, monkeypatch):
+    """The fingerprint is cached per process; collecting a grid's runs hashes the simulator's
+    files again, so a file edited after the first status check is seen."""
+    from clfd_bench.leaderboard.runner import collect
+    from clfd_bench.runs import RunDir
+
+    source = tmp_path / "sim_source.py"
+    source.write_text("version 1")
+    monkeypatch.setattr("clfd_bench.execution.fingerprint._sim_files", lambda: iter([source]))
+    sim_fingerprint.cache_clear()
+    try:
+        grid = tmp_path / "grid"
+        run = RunDir(SPEC.run_dir(grid))
+        run.write_training_results({"tasks_done": 1, "complete": True,
+                                    "errors": {"dtw": [[1.0]]}})
+        run.write_sim_results({"success": [[[True]]], "sim_accuracy": [[1.0]],
+                               "sim_cl_metrics": {"ACC": 1.0},
+                               "sim": {"evaluated_tasks": 1, "fingerprint": sim_fingerprint()}})
+        assert collect([SPEC], grid)[0].status == "done"
+        source.write_text("version 2")  # edited while the grid ran
+        record = collect([SPEC], grid)[0]
+        assert record.status == "partial"
+        assert "executed by simulator" in record.error and "files changed since" in record.error
+    finally:
+        sim_fingerprint.cache_clear()

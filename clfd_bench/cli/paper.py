@@ -90,7 +90,7 @@ def _list(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tables(args: argparse.Namespace, specs=None) -> int:
+def _tables(args: argparse.Namespace, specs=None, failed=()) -> int:
     import statistics
 
     from clfd_bench.studies.paper_tables import build_tables, write_outputs
@@ -130,7 +130,7 @@ def _tables(args: argparse.Namespace, specs=None) -> int:
     if done < len(records):
         summary += (f". {len(records) - done} run(s) missing: `clfd-bench paper run` with the "
                     "same flags trains them")
-    finish("paper", out / "paper_tables.md", files, summary=summary + ".")
+    finish("paper", out / "paper_tables.md", files, failed, summary=summary + ".")
     if done == 0:
         print(f"clfd-bench paper tables: no finished runs under {out}/runs for this selection; "
               f"run `clfd-bench paper run [same flags] --out {out}`", file=sys.stderr)
@@ -149,9 +149,7 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     print(f"[paper] {len(specs)} runs: {len(grid.trained)} trained or resumed now, "
           f"{len(grid.skipped)} already done, {len(grid.failed)} failed")
-    code = _tables(args, specs)
-    for outcome in grid.failed:
-        print(f"[paper] FAILED {outcome.spec.name}: {outcome.error}", file=sys.stderr)
+    code = _tables(args, specs, grid.failed)
     return 1 if grid.failed else code
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from clfd_bench.runs import RunDir, RunStatus
 
-__all__ = ["RunSpec", "make_grid", "run_state", "run_status"]
+__all__ = ["RunSpec", "make_grid", "reread_simulator", "run_state", "run_status"]
 
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -193,13 +193,12 @@ def make_grid(
 def run_state(spec: RunSpec, root: Path) -> RunStatus:
     """Where the run of ``spec`` under ``root`` stands (:meth:`clfd_bench.runs.RunDir.status`),
     with what is left to do in words. With simulation, executions by another simulator
-    version do not count; the simulator's fingerprint is read from its files now, so a file
-    edited while a grid runs is seen."""
+    version do not count (the fingerprint is cached per process: :func:`reread_simulator`
+    makes the next call read the simulator's files again)."""
     fingerprint = None
     if spec.sim:
         from clfd_bench.execution.fingerprint import sim_fingerprint
 
-        sim_fingerprint.cache_clear()
         fingerprint = sim_fingerprint()
     return RunDir(spec.run_dir(root)).status(spec.num_tasks(), spec.sim, fingerprint)
 
@@ -208,3 +207,11 @@ def run_status(spec: RunSpec, root: Path) -> str:
     """``"done"``, ``"failed"`` (its last attempt crashed), ``"partial"`` or ``"missing"``
     (:func:`run_state`)."""
     return run_state(spec, root).state
+
+
+def reread_simulator() -> None:
+    """Forgets the cached simulator fingerprint, so the next :func:`run_state` hashes the
+    simulator's files as they are now (a file edited while a grid ran is seen)."""
+    from clfd_bench.execution.fingerprint import sim_fingerprint
+
+    sim_fingerprint.cache_clear()

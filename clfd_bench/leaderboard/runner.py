@@ -8,7 +8,13 @@ from pathlib import Path
 
 from clfd_bench.leaderboard.aggregate import MethodRow, RunRecord, aggregate
 from clfd_bench.leaderboard.executors import RunOutcome, execute_grid
-from clfd_bench.leaderboard.grid import RunSpec, make_grid, run_state, run_status
+from clfd_bench.leaderboard.grid import (
+    RunSpec,
+    make_grid,
+    reread_simulator,
+    run_state,
+    run_status,
+)
 from clfd_bench.leaderboard.plots import plot_all
 from clfd_bench.leaderboard.report import write_tables
 from clfd_bench.progress import progress
@@ -92,7 +98,9 @@ class LeaderboardResult:
 
 
 def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
-    """The current state of every run of the grid, read from disk."""
+    """The current state of every run of the grid, read from disk (the simulator's files
+    included: executions by a simulator edited since do not count)."""
+    reread_simulator()
     records = []
     for spec in specs:
         run = RunDir(spec.run_dir(out))
