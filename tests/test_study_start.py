@@ -179,6 +179,28 @@ def test_planar_end_deltas_in_metres_and_horizon_times():
         sr.StudyConfig(horizon=0.5)
 
 
+def test_settle_times_on_hand_made_predictions():
+    """Settled = within SETTLE_M of the goal from that sample on, in multiples of the demo's
+    duration; a prediction that leaves the ball again has not settled until it is back for
+    good; the last sample outside (or NaN) means it did not settle."""
+    scale = 0.01  # m per unit: the 1 cm ball is 1 unit
+    times = np.arange(6) * 0.5             # 0 .. 2.5 s
+    preds = np.zeros((5, 6, 2))
+    preds[0, :, 0] = [5, 3, 0.5, 0.2, 0, 0]   # in from sample 2: 1.0 s
+    preds[1, :, 0] = [5, 0.5, 2, 0.9, 0.1, 0]  # in at 1, out at 2, in for good from 3: 1.5 s
+    preds[2, :, 0] = [5, 4, 3, 2, 1.5, 1.2]    # never within: inf
+    preds[3, :, 1] = [0.3, 0.3, 0.3, 0.3, 0.3, 0.3]  # always within: 0
+    preds[4, :, 0] = [5, 0.5, 0.5, 0.5, 0.5, np.nan]  # NaN at the end: inf
+    t = sr.settle_times(preds, np.zeros(2), times, duration=0.5, pos_dim=2, scale=scale)
+    np.testing.assert_allclose(t[:2], [2.0, 3.0])  # 1.0 s and 1.5 s over a 0.5 s demo
+    assert math.isinf(t[2]) and t[3] == 0.0 and math.isinf(t[4])
+    with pytest.raises(ValueError, match="samples"):
+        sr.settle_times(preds, np.zeros(2), times[:4], duration=0.5, pos_dim=2)
+    rec = sr.StartRecord("m", "t", 0, 0, 0.1, 0.2, False, settle_time=math.inf)
+    assert rec.to_json()["settle_time"] is None
+    assert math.isinf(sr.StartRecord.from_json(rec.to_json()).settle_time)
+
+
 def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys):
     """Two runs on LASA's first shape, NODE^T and sNODE, labelled apart; end Δ in metres on
     the table from starts in the disc; the horizon lengthens the prediction; execution is
@@ -210,4 +232,13 @@ def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys):
     pred = learner.predict(0, task.demos[ref["demo"], :1], times)
     expected = float(np.linalg.norm(pred[0, -1] - task.goal)) * task.sim_scale
     assert ref["end_delta_m"] == pytest.approx(expected, rel=1e-5)
+    dist = np.linalg.norm(pred[0] - task.goal, axis=1) * task.sim_scale
+    outside = np.flatnonzero(dist > sr.SETTLE_M)
+    if outside.size and outside[-1] == len(times) - 1:
+        assert ref["settle_time"] is None
+    else:
+        first = 0 if not outside.size else outside[-1] + 1
+        duration = task.times[-1] - task.times[0]
+        assert ref["settle_time"] == pytest.approx((times[first] - times[0]) / duration)
+    assert (out / "start_settling.png").stat().st_size > 0
     assert (out / "start_overview.png").stat().st_size > 0

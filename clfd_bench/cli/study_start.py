@@ -52,6 +52,7 @@ def _run(args: argparse.Namespace) -> int:
     from clfd_bench.methods import get_method_class
     from clfd_bench.node_variants import NODE_VARIANTS
     from clfd_bench.studies.start_robustness import (
+        SETTLE_M,
         STUDY_DATASETS,
         StudyConfig,
         check_executable,
@@ -61,6 +62,7 @@ def _run(args: argparse.Namespace) -> int:
     )
     from clfd_bench.studies.start_robustness_plots import (
         plot_overview,
+        plot_settling,
         plot_study,
         summarize,
         write_records,
@@ -107,15 +109,19 @@ def _run(args: argparse.Namespace) -> int:
     files = write_records(records, out) + write_summary(rows, out)
     fig = plot_study(records, methods, tasks, out / "start_robustness.png")
     overview = plot_overview(records, methods, tasks, out / "start_overview.png")
-    files += [f for f in (fig, overview) if f]
+    settling = plot_settling(records, methods, tasks, out / "start_settling.png")
+    files += [f for f in (fig, overview, settling) if f]
     for path in files:
         print(f"[study start] wrote {path}")
     print((out / "summary.md").read_text())
     parts = []
     for r in rows:
         succ = "" if r["success_rate"] is None else f", sim success {r['success_rate']:.0%}"
+        slowest = (f"the slowest after {r['max_settle']:.2g}x"
+                   if r["max_settle"] != float("inf") else "not all")
         parts.append(f"{r['method']}/{r['task']}: median end Δ {r['median_end_cm']:.1f} cm, "
-                     f"Large {r['large_frac']:.0%}{succ}")
+                     f"Large {r['large_frac']:.0%}, {r['settled_frac']:.0%} settled within "
+                     f"{SETTLE_M * 100:g} cm ({slowest}){succ}")
     how = (f"executed in simulation after an approach at {cfg.approach_speed:g} m/s"
            if cfg.execute else "not executed")
     horizon = "" if cfg.horizon == 1.0 else f", predicted over {cfg.horizon:g}x its duration"

@@ -6,8 +6,11 @@ for every method); the orientation start is the demo's start quaternion. Every t
 predicts, with the demo's time steps (``horizon`` times as many with the same step: 1 is the
 paper's), from each start and from the demo's own start (the reference, start Δ = 0). Per
 start we record the start Δ (m), the end-position Δ to the task's goal position (m; a
-prediction that is not finite counts as infinitely far, i.e. "Large": end Δ > :data:`LARGE_M`)
-and whether the prediction succeeds when executed in the task's simulated scene.
+prediction that is not finite counts as infinitely far, i.e. "Large": end Δ > :data:`LARGE_M`),
+when the prediction settles (enters the goal's :data:`SETTLE_M` ball and stays in it, in
+multiples of the demo's duration; with ``horizon`` > 1 this shows how long a stable model
+takes to converge) and whether the prediction succeeds when executed in the task's simulated
+scene.
 
 **Datasets** (:data:`STUDY_DATASETS`). RoboTasks (the paper's study): 3-D positions in metres,
 executed. LASA: the planar shapes as laid on the simulated table (``Task.sim_scale`` metres
@@ -51,15 +54,19 @@ from clfd_bench.io import atomic_write_json
 from clfd_bench.runs import RunDir, RunFileError
 
 __all__ = [
-    "BINS_CM", "DIVERGED_M", "LARGE_M", "STUDY_DATASETS", "StartRecord", "StudyConfig",
-    "approach_path", "check_executable", "choose_demo", "draw_starts", "end_deltas",
-    "execute", "horizon_times", "run_label", "run_start_study", "sample_ball", "study_dataset",
+    "BINS_CM", "DIVERGED_M", "LARGE_M", "SETTLE_M", "STUDY_DATASETS", "StartRecord",
+    "StudyConfig", "approach_path", "check_executable", "choose_demo", "draw_starts",
+    "end_deltas", "execute", "horizon_times", "run_label", "run_start_study", "sample_ball",
+    "settle_times", "study_dataset",
 ]
 
 #: Start-Δ bins of the summary and the figure, centimetres.
 BINS_CM = (0.0, 5.0, 10.0, 15.0, 20.0)
 #: End Δ above this (metres) is "Large" (the paper's band above 100 cm).
 LARGE_M = 1.0
+#: A prediction has settled once it stays within this distance of the goal position (metres;
+#: on LASA the shape's distance as laid on the simulated table).
+SETTLE_M = 0.01
 #: A prediction with any position coordinate beyond this (metres) has diverged: not executed.
 DIVERGED_M = 10.0
 #: Reference record's start index (the prediction from the demo's own start, start Δ = 0).
@@ -113,6 +120,8 @@ class StartRecord:
 
     ``start_index`` is :data:`REFERENCE` (-1) for the prediction from the demo's own start.
     ``end_delta_m`` is ``inf`` for a non-finite prediction; ``success`` None when not executed.
+    ``settle_time``: when the prediction entered the goal's :data:`SETTLE_M` ball for good, in
+    multiples of the demo's duration (:func:`settle_times`; ``inf``: not within the horizon).
     ``max_tracking_error_m``: the largest distance (m) between the hand and its commanded pose
     during the execution (large when the hand was blocked or the pose out of reach);
     ``outcome``: the env's final task quantities (e.g. ``lid_angle_deg``,
@@ -126,6 +135,7 @@ class StartRecord:
     start_delta_m: float
     end_delta_m: float
     large: bool
+    settle_time: float = math.inf
     success: bool | None = None
     failure: str | None = None
     approach_steps: int = 0
@@ -135,15 +145,17 @@ class StartRecord:
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
-        if not math.isfinite(d["end_delta_m"]):
-            d["end_delta_m"] = None  # JSON has no inf: None = diverged (large)
+        for key in ("end_delta_m", "settle_time"):
+            if not math.isfinite(d[key]):
+                d[key] = None  # JSON has no inf: None = diverged / not settled
         return d
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> StartRecord:
         d = dict(d)
-        if d["end_delta_m"] is None:
-            d["end_delta_m"] = math.inf
+        for key in ("end_delta_m", "settle_time"):
+            if d.get(key, math.inf) is None:
+                d[key] = math.inf
         return cls(**d)
 
 
@@ -197,6 +209,40 @@ def end_deltas(predictions: np.ndarray, goal: np.ndarray, pos_dim: int = 3,
     with np.errstate(over="ignore", invalid="ignore"):
         d = np.linalg.norm(last - np.asarray(goal, dtype=float)[:pos_dim], axis=1) * scale
     return np.where(np.isfinite(d), d, np.inf)
+
+
+def settle_times(predictions: np.ndarray, goal: np.ndarray, times: np.ndarray,
+                 duration: float, pos_dim: int = 3, scale: float = 1.0,
+                 tol_m: float = SETTLE_M) -> np.ndarray:
+    """When each prediction enters the goal's ``tol_m`` ball for good.
+
+    Args:
+        predictions: ``[N, T, D]`` (D >= pos_dim; positions first).
+        goal: ``[D]`` or ``[pos_dim]`` goal (positions first).
+        times: ``[T]`` the predictions' time stamps (seconds).
+        duration: the demo's duration (seconds), the unit of the result.
+        pos_dim: position dimensions.
+        scale: metres per data unit.
+        tol_m: the ball's radius, metres.
+
+    Returns:
+        ``[N]``: ``(times[i] - times[0]) / duration`` for the first ``i`` from which every
+        position is within ``tol_m`` of the goal (0 when all are); ``inf`` when the last one
+        is not (the prediction did not settle within its horizon, or is not finite).
+    """
+    p = np.asarray(predictions, dtype=float)[:, :, :pos_dim]
+    times = np.asarray(times, dtype=float)
+    if p.shape[1] != len(times) or not duration > 0:
+        raise ValueError(f"settle_times: {p.shape[1]} samples against {len(times)} times, "
+                         f"duration {duration}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = np.linalg.norm(p - np.asarray(goal, dtype=float)[:pos_dim], axis=2) * scale
+    outside = ~(d <= tol_m)  # NaN counts as outside
+    last_out = p.shape[1] - 1 - np.argmax(outside[:, ::-1], axis=1)
+    first_in = np.where(outside.any(axis=1), last_out + 1, 0)
+    settled = first_in < p.shape[1]
+    index = np.minimum(first_in, p.shape[1] - 1)
+    return np.where(settled, (times[index] - times[0]) / duration, np.inf)
 
 
 def diverged(prediction: np.ndarray, pos_dim: int = 3, scale: float = 1.0) -> bool:
@@ -421,6 +467,8 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
                 with np.errstate(all="ignore"):
                     preds = learner.predict(order.index(name), starts, times, goals)
                 ends = end_deltas(preds, task.goal, pos_dim, scale)
+                settle = settle_times(preds, task.goal, times,
+                                      float(task.times[-1] - task.times[0]), pos_dim, scale)
                 cache_path = out / "cache" / label / f"{name}.json"
                 key = _cache_key(run_dir, name, demo, cfg)
                 cached = _load_cache(cache_path, key)
@@ -435,6 +483,7 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
                             start_delta_m=float(np.linalg.norm(
                                 starts[k, :pos_dim] - demo_start[:pos_dim]) * scale),
                             end_delta_m=float(ends[k]), large=bool(ends[k] > LARGE_M),
+                            settle_time=float(settle[k]),
                             start=[float(v) for v in starts[k]])
                         if cfg.execute:
                             for attr, value in execute(env, demo, demo_start, preds[k],
@@ -442,6 +491,7 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
                                 setattr(rec, attr, value)
                         cached[index] = rec
                         _save_cache(cache_path, key, cached)
+                    rec.settle_time = float(settle[k])  # cached records: from this prediction
                     records.append(rec)
                     bar.update(1)
     finally:

@@ -14,10 +14,16 @@ from typing import Any
 import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text
-from clfd_bench.studies.start_robustness import BINS_CM, LARGE_M, REFERENCE, StartRecord
+from clfd_bench.studies.start_robustness import (
+    BINS_CM,
+    LARGE_M,
+    REFERENCE,
+    SETTLE_M,
+    StartRecord,
+)
 
-__all__ = ["bin_labels", "plot_overview", "plot_study", "summarize", "write_records",
-           "write_summary"]
+__all__ = ["bin_labels", "plot_overview", "plot_settling", "plot_study", "summarize",
+           "write_records", "write_summary"]
 
 _LARGE_CM = LARGE_M * 100.0
 _BAND_TOP_CM = _LARGE_CM * 1.2  # the "Large" band spans 100..120 cm in the plots
@@ -45,9 +51,11 @@ def _median(values: list[float]) -> float | None:
 def summarize(records: list[StartRecord], methods: list[str],
               tasks: list[str]) -> list[dict[str, Any]]:
     """One row per (method, task): ``n``, ``median_end_cm``, ``large_frac``,
-    ``median_end_cm_<bin>``, ``success_rate`` (None when not executed),
-    ``success_rate_<bin>``, ``ref_end_cm`` and ``ref_success`` (from the demo's own start).
-    Medians may be ``inf`` (more than half diverged)."""
+    ``settled_frac`` (share of starts that settled within :data:`SETTLE_M` of the goal),
+    ``median_settle`` and ``max_settle`` (when they settled, multiples of the demo's duration;
+    ``inf`` when half / any did not), ``median_end_cm_<bin>``, ``success_rate`` (None when not
+    executed), ``success_rate_<bin>``, ``ref_end_cm`` and ``ref_success`` (from the demo's own
+    start). Medians may be ``inf`` (more than half diverged)."""
     rows = []
     for m in methods:
         for t in tasks:
@@ -62,6 +70,9 @@ def summarize(records: list[StartRecord], methods: list[str],
                 "method": m, "task": t, "demo": sample[0].demo, "n": len(sample),
                 "median_end_cm": _median(ends),
                 "large_frac": float(np.mean([r.large for r in sample])),
+                "settled_frac": float(np.mean([math.isfinite(r.settle_time) for r in sample])),
+                "median_settle": _median([r.settle_time for r in sample]),
+                "max_settle": float(max(r.settle_time for r in sample)),
                 "success_rate": (float(np.mean([r.success for r in executed]))
                                  if executed else None),
             }
@@ -78,7 +89,7 @@ def summarize(records: list[StartRecord], methods: list[str],
 
 
 _RECORD_COLS = ("method", "task", "demo", "start_index", "start_delta_m", "end_delta_m", "large",
-                "success", "failure", "approach_steps", "max_tracking_error_m")
+                "settle_time", "success", "failure", "approach_steps", "max_tracking_error_m")
 
 
 def write_records(records: list[StartRecord], out: Path) -> list[Path]:
@@ -106,17 +117,26 @@ def _fmt(x: Any, pct: bool = False) -> str:
     return str(x)
 
 
+def _fmt_times(x: float | None) -> str:
+    """A settle time in multiples of the demo's duration (``–`` when it did not settle)."""
+    return "–" if x is None or not math.isfinite(x) else f"{x:.2g}x"
+
+
 def summary_markdown(rows: list[dict[str, Any]]) -> str:
-    """The summary as a markdown table (end Δ in cm; n = starts in the bin)."""
+    """The summary as a markdown table (end Δ in cm; n = starts in the bin; settled: within
+    :data:`SETTLE_M` of the goal from then on, times in multiples of the demo's duration)."""
     labels = bin_labels()
-    head = (["method", "task", "demo", "median end Δ", "Large (>100 cm)"]
+    tol = f"{SETTLE_M * 100:g} cm"
+    head = (["method", "task", "demo", "median end Δ", "Large (>100 cm)",
+             f"settled within {tol}", "settled after (median / slowest)"]
             + [f"median end Δ, start {lb} cm" for lb in labels]
             + ["sim success"] + [f"success, start {lb} cm" for lb in labels]
             + ["end Δ from demo start", "success from demo start"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = ([r["method"], r["task"], str(r["demo"]), _fmt(r["median_end_cm"]),
-                  _fmt(r["large_frac"], pct=True)]
+                  _fmt(r["large_frac"], pct=True), _fmt(r["settled_frac"], pct=True),
+                  f"{_fmt_times(r['median_settle'])} / {_fmt_times(r['max_settle'])}"]
                  + [f"{_fmt(r[f'median_end_cm_{lb}'])} (n={r[f'n_{lb}']})" for lb in labels]
                  + [_fmt(r["success_rate"], pct=True)]
                  + [_fmt(r[f"success_rate_{lb}"], pct=True) for lb in labels]
@@ -275,6 +295,45 @@ def plot_overview(records: list[StartRecord], methods: list[str], tasks: list[st
     ax.set_xticks(range(len(tasks)), tasks, rotation=60, ha="right", fontsize=7)
     ax.set_ylabel("end Δ to the goal [cm]")
     ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    out = _save(fig, Path(path))
+    plt.close(fig)
+    return out
+
+
+def plot_settling(records: list[StartRecord], methods: list[str], tasks: list[str],
+                  path: Path) -> Path | None:
+    """How fast predictions converge: per method (one panel), the share of starts settled
+    within :data:`SETTLE_M` of the goal against time (multiples of the demo's duration), one
+    thin line per task and a thick one over all tasks."""
+    from clfd_bench.leaderboard.plots import _plt, _save
+
+    recs = [r for r in records if r.start_index != REFERENCE and r.task in tasks]
+    if not recs:
+        return None
+    plt = _plt()
+    finite = [r.settle_time for r in recs if math.isfinite(r.settle_time)]
+    horizon = max([1.0, *finite])
+    grid = np.linspace(0.0, horizon, 400)
+    fig, axes = plt.subplots(1, len(methods), figsize=(4.2 * len(methods), 3.4),
+                             squeeze=False, sharey=True)
+    for ax, m in zip(axes[0], methods, strict=True):
+        mine = [r for r in recs if r.method == m]
+        for task in tasks:
+            t = np.array([r.settle_time for r in mine if r.task == task])
+            if len(t):
+                ax.plot(grid, (t[None, :] <= grid[:, None]).mean(axis=1), lw=0.6, alpha=0.5)
+        t = np.array([r.settle_time for r in mine])
+        if len(t):
+            share = (t[None, :] <= grid[:, None]).mean(axis=1)
+            ax.plot(grid, share, color="k", lw=2.0,
+                    label=f"all tasks: {np.isfinite(t).mean():.0%} settled")
+            ax.legend(fontsize=7, loc="lower right")
+        ax.set_title(m, fontsize=9)
+        ax.set_xlabel("time [x the demo's duration]")
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel(f"starts within {SETTLE_M * 100:g} cm of the goal for good")
     fig.tight_layout()
     out = _save(fig, Path(path))
     plt.close(fig)
