@@ -276,12 +276,14 @@ def test_snode_settings_come_from_the_shared_file_then_the_method_then_set(tmp_p
 
 def test_a_methods_snode_table_can_set_one_part_and_misplaced_part_tables_raise(tmp_path):
     """CHN's [fast.snode] lowers lr for the sNODE, its [fast.snode.orientation] keeps the
-    orientation model's; a part table where no part is read fails instead of being ignored."""
+    orientation model's and [fast.snode.robotasks.position] RoboTasks' position model's; a part
+    table where no part is read fails instead of being ignored."""
     from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
 
     pose = resolve_config("chn", "robotasks", "fast", node="s")
-    assert (pose.part("position").lr, pose.part("orientation").lr) == (0.001, 0.003)
-    assert resolve_config("chn", "lasa", "fast", node="s").part("position").lr == 0.001
+    assert (pose.part("position").lr, pose.part("orientation").lr) == (0.003, 0.003)
+    for dataset in ("lasa", "helloworld"):
+        assert resolve_config("chn", dataset, "fast", node="s").part("position").lr == 0.001
     plain = resolve_config("chn", "robotasks", "fast", node="t")
     assert plain.part("position").lr == plain.part("orientation").lr == 0.003
     cli = resolve_config("chn", "robotasks", "fast", node="s", overrides=["lr=0.002"])
@@ -328,7 +330,10 @@ def test_a_datasets_snode_table_sets_that_dataset_alone(tmp_path):
     from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
 
     own = tmp_path / "chn.toml"
+    shipped = "[fast.snode.robotasks.position]\nlr = 0.003\n"
     base = baselines_file("chn").read_text()
+    assert shipped in base
+    base = base.replace(shipped, "")  # the test sets its own value
     own.write_text(base + "\n[fast.snode.robotasks.position]\nlr = 0.002\n")
 
     def lr(dataset: str, part: str = "position", **kw) -> float:
