@@ -201,7 +201,7 @@ def test_settle_times_on_hand_made_predictions():
     assert math.isinf(sr.StartRecord.from_json(rec.to_json()).settle_time)
 
 
-def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys):
+def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys, monkeypatch):
     """Two runs on LASA's first shape, NODE^T and sNODE, labelled apart; end Δ in metres on
     the table from starts in the disc; the horizon lengthens the prediction; execution is
     refused on LASA with what to do."""
@@ -226,7 +226,14 @@ def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys):
     assert all(0 < r["start_delta_m"] <= R + 1e-9 for r in starts)
     assert all(len(r["start"]) == 2 for r in records)
     run_dir = RunSpec("lasa", "hn", "smoke", 0, node="s", tasks=1, sim=False).run_dir(out)
-    learner, _ = load_learner(run_dir)
+    import torch
+
+    monkeypatch.delenv("CLFD_THREADS", raising=False)
+    torch.set_num_threads(2)
+    load_learner(run_dir, threads=2)
+    assert torch.get_num_threads() == 2
+    learner, _ = load_learner(run_dir)  # predictions run on one thread unless told otherwise
+    assert torch.get_num_threads() == 1
     times = sr.horizon_times(task.times, 3.0)
     assert len(times) == 3 * (len(task.times) - 1) + 1
     pred = learner.predict(0, task.demos[ref["demo"], :1], times)

@@ -140,8 +140,17 @@ def _checkpoint_payload(learner: Learner) -> tuple[dict[str, Any], dict[str, tor
     return headers, tensors
 
 
-def load_learner(run_dir: str | os.PathLike[str]) -> tuple[Learner, dict[str, Any]]:
-    """Rebuild the trained model of a run from its checkpoint -> ``(learner, header)``."""
+def load_learner(run_dir: str | os.PathLike[str], *,
+                 threads: int | None = None) -> tuple[Learner, dict[str, Any]]:
+    """Rebuild the trained model of a run from its checkpoint -> ``(learner, header)``.
+
+    Also sets torch's CPU threads to ``threads`` (default :func:`default_threads`, i.e. 1):
+    predicting runs the same thousands of tiny operations as training, and with torch's
+    default of one thread per core a prediction beside another busy process ran ~4x slower
+    (an sNODE's LASA predictions over 50x the demo's duration, 101 starts: 5 min 12 s for one
+    shape with two threads, against 16 s per 10x with one).
+    """
+    torch.set_num_threads(threads or default_threads())
     run = RunDir(run_dir)
     header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
     config = RunConfig.from_dict(header["config"])

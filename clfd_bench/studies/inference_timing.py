@@ -203,8 +203,10 @@ def build_learner(
     return learner, list(ds.tasks)
 
 
-def load_run(run_dir: str | os.PathLike[str]) -> tuple[Learner, list[Task]]:
-    """The trained learner of a run and its tasks (in the run's order).
+def load_run(run_dir: str | os.PathLike[str],
+             threads: int | None = None) -> tuple[Learner, list[Task]]:
+    """The trained learner of a run and its tasks (in the run's order); torch's CPU threads
+    set to ``threads`` (default :func:`clfd_bench.harness.protocol.default_threads`).
 
     Raises:
         FileNotFoundError: no checkpoint (says what to run).
@@ -217,7 +219,7 @@ def load_run(run_dir: str | os.PathLike[str]) -> tuple[Learner, list[Task]]:
             f"`clfd-bench train --method hn --dataset helloworld --profile paper --out "
             f"{run.path}`"
         )
-    learner, _header = load_learner(run.path)
+    learner, _header = load_learner(run.path, threads=threads)
     config: RunConfig = learner.config
     _check_method(config.method)
     _check_dataset(config.dataset)
@@ -724,7 +726,7 @@ def run_study(
         bar = progress(total=len(jobs) * len(devices), desc="timing")
         for kind, a, b in jobs:
             if kind == "run":
-                learner, tasks = load_run(a)
+                learner, tasks = load_run(a, threads)
                 apply_eval_overrides(learner, overrides)
                 method, dataset, source = learner.config.method, learner.config.dataset, a
                 settings = {**base, "source": source, "overrides": list(overrides),
