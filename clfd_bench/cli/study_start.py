@@ -109,7 +109,8 @@ def _run(args: argparse.Namespace) -> int:
     files = write_records(records, out) + write_summary(rows, out)
     fig = plot_study(records, methods, tasks, out / "start_robustness.png")
     overview = plot_overview(records, methods, tasks, out / "start_overview.png")
-    settling = plot_settling(records, methods, tasks, out / "start_settling.png")
+    settling = plot_settling(records, methods, tasks, out / "start_settling.png",
+                             cfg.horizon)
     files += [f for f in (fig, overview, settling) if f]
     for path in files:
         print(f"[study start] wrote {path}")

@@ -302,10 +302,11 @@ def plot_overview(records: list[StartRecord], methods: list[str], tasks: list[st
 
 
 def plot_settling(records: list[StartRecord], methods: list[str], tasks: list[str],
-                  path: Path) -> Path | None:
+                  path: Path, horizon: float | None = None) -> Path | None:
     """How fast predictions converge: per method (one panel), the share of starts settled
-    within :data:`SETTLE_M` of the goal against time (multiples of the demo's duration), one
-    thin line per task and a thick one over all tasks."""
+    within :data:`SETTLE_M` of the goal against time (multiples of the demo's duration, up to
+    ``horizon``, default the slowest settle time), one thin line per task and a thick one over
+    all tasks."""
     from clfd_bench.leaderboard.plots import _plt, _save
 
     recs = [r for r in records if r.start_index != REFERENCE and r.task in tasks]
@@ -313,7 +314,7 @@ def plot_settling(records: list[StartRecord], methods: list[str], tasks: list[st
         return None
     plt = _plt()
     finite = [r.settle_time for r in recs if math.isfinite(r.settle_time)]
-    horizon = max([1.0, *finite])
+    horizon = horizon or max([1.0, *finite])
     grid = np.linspace(0.0, horizon, 400)
     fig, axes = plt.subplots(1, len(methods), figsize=(4.2 * len(methods), 3.4),
                              squeeze=False, sharey=True)
