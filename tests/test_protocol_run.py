@@ -50,6 +50,10 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
     assert results["provenance"]["dataset"]["name"] == "helloworld"
     assert "torch" in results["provenance"]["packages"]
 
+    cpu = results["provenance"]["cpu"]
+    assert cpu["torch_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert cpu["model"] and isinstance(cpu["kernel_env"], dict)
+
     # predictions on disk = the model's prediction from each demo's start, data units
     from clfd_bench.data import load_dataset
 

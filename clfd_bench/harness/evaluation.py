@@ -158,6 +158,36 @@ def package_versions() -> dict[str, str]:
     return out
 
 
+#: Environment variables that choose the CPU kernels PyTorch and MKL run (recorded when set).
+KERNEL_ENV = ("ATEN_CPU_CAPABILITY", "MKL_ENABLE_INSTRUCTIONS", "MKL_CBWR", "ONEDNN_MAX_CPU_ISA")
+
+
+def cpu_provenance() -> dict[str, Any]:
+    """The CPU a result was computed on and the kernels PyTorch dispatched to.
+
+    Training is reproducible on one machine, not across CPUs: PyTorch and MKL pick vector
+    kernels by instruction set (AVX2, AVX-512, ...), whose float rounding differs, and a
+    sensitive run amplifies it (an sNODE orientation model learned to 3.7 degrees with AVX2
+    kernels and stuck at 50 with AVX-512, same seed; docs/snode.md). Returns ``model`` (from
+    ``/proc/cpuinfo`` where there is one, else ``platform.processor()``), ``torch_capability``
+    (``torch.backends.cpu.get_cpu_capability()``) and ``kernel_env``: the set variables of
+    :data:`KERNEL_ENV`.
+    """
+    import os
+
+    import torch
+
+    model = platform.processor()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            model = next((line.split(":", 1)[1].strip() for line in fh
+                          if line.startswith("model name")), model)
+    except OSError:
+        pass
+    return {"model": model, "torch_capability": torch.backends.cpu.get_cpu_capability(),
+            "kernel_env": {k: os.environ[k] for k in KERNEL_ENV if k in os.environ}}
+
+
 def dataset_provenance(ds: Dataset) -> dict[str, Any]:
     """The dataset block of ``results.json``'s provenance: name, order, tasks, source, the
     sha256 of every file."""

@@ -30,6 +30,7 @@ from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
 from clfd_bench.harness.config import PartConfig, RunConfig
 from clfd_bench.harness.evaluation import (
     SCHEMA_VERSION,
+    cpu_provenance,
     dataset_provenance,
     metrics_for,
     package_versions,
@@ -88,6 +89,7 @@ def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
         "dataset": dataset_provenance(ds),
         "seed": config.seed,
         "torch_threads": threads,
+        "cpu": cpu_provenance(),
     }
 
 
