@@ -12,20 +12,24 @@ from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.stable import StableSpec
 from clfd_bench.learning.stable_fused import integrate_stable
 
-CASES = [  # clock, cond_dim, lyap_hidden, activation, solver, substeps, per-sample times
-    (False, 0, (8, 8), "relu", "rk4", 1, False),
-    (True, 3, (6, 5, 4), "relu", "rk4", 1, False),
-    (False, 3, (8, 8), "elu", "rk4", 2, True),
-    (True, 0, (6, 5, 4), "tanh", "rk4", 1, True),
-    (True, 3, (8, 8), "tanh", "euler", 2, True),
-    (False, 0, (6, 5, 4), "relu", "euler", 1, False),
+CASES = [  # clock, cond_dim, lyap_hidden, activation, solver, substeps, per-sample times,
+    #         V from g's tangent plane at the goal
+    (False, 0, (8, 8), "relu", "rk4", 1, False, False),
+    (True, 3, (6, 5, 4), "relu", "rk4", 1, False, False),
+    (False, 3, (8, 8), "elu", "rk4", 2, True, False),
+    (True, 0, (6, 5, 4), "tanh", "rk4", 1, True, False),
+    (True, 3, (8, 8), "tanh", "euler", 2, True, False),
+    (False, 0, (6, 5, 4), "relu", "euler", 1, False, False),
+    (False, 0, (8, 8), "relu", "rk4", 1, False, True),
+    (True, 3, (6, 5, 4), "tanh", "rk4", 2, True, True),
+    (False, 3, (8, 8), "elu", "euler", 1, True, True),
 ]
 
 
-def _problem(clock, cond_dim, lyap, act, per_sample, seed=0):
+def _problem(clock, cond_dim, lyap, act, per_sample, seed=0, tangent=False):
     torch.manual_seed(seed)
     spec = StableSpec(2, (16, 16), lyap, clock=clock, cond_dim=cond_dim, activation=act,
-                      alpha=0.3, eps=1e-3, rehu_d=0.05)
+                      alpha=0.3, eps=1e-3, rehu_d=0.05, tangent=tangent)
     gen = torch.Generator().manual_seed(seed + 1)
     # 2.5x the initial scale: the projection is active on part of the states (checked)
     weights = [(w * 2.5).requires_grad_() for w in spec.init_weights(gen, torch.float64)]
@@ -39,8 +43,9 @@ def _problem(clock, cond_dim, lyap, act, per_sample, seed=0):
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: "-".join(map(str, c)))
 def test_fused_equals_autograd(case):
-    clock, cond_dim, lyap, act, solver, substeps, per_sample = case
-    spec, weights, cond, y0, t = _problem(clock, cond_dim, lyap, act, per_sample)
+    clock, cond_dim, lyap, act, solver, substeps, per_sample, tangent = case
+    spec, weights, cond, y0, t = _problem(clock, cond_dim, lyap, act, per_sample,
+                                          tangent=tangent)
     inputs = [y0, *weights] + ([cond] if cond is not None else [])
     probe = torch.randn(5, 7, 2, dtype=torch.float64)
     results = []

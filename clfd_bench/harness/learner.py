@@ -269,7 +269,8 @@ class Learner:
                 spec = StableSpec(dim=part_dim, hidden=cfg.node_hidden,
                                   lyap_hidden=cfg.lyap_hidden, clock=cfg.snode_clock,
                                   activation=cfg.activation, alpha=cfg.snode_alpha,
-                                  eps=cfg.snode_eps, rehu_d=cfg.snode_rehu)
+                                  eps=cfg.snode_eps, rehu_d=cfg.snode_rehu,
+                                  tangent=cfg.snode_tangent)
             else:
                 spec = NodeSpec(dim=part_dim, hidden=cfg.node_hidden,
                                 time_input=config.node == "t", activation=cfg.activation)

@@ -204,6 +204,7 @@ PART_RULES: dict[str, Rule] = {
     "snode_eps": Rule("float", lo=0, lo_open=True, what="weight of V's quadratic floor"),
     "snode_rehu": Rule("float", lo=0, lo_open=True, what="ReHU width of the sNODE's ICNN"),
     "snode_clock": Rule("bool"),
+    "snode_tangent": Rule("bool"),
 }
 """The type and valid range of every :class:`PartConfig` field (one entry per field)."""
 
@@ -282,7 +283,9 @@ class PartConfig:
         only when not at their defaults, :data:`SNODE_KEYS`): ``lyap_hidden`` widths of the
         Lyapunov function's ICNN, ``snode_alpha`` its decay rate, ``snode_eps`` its quadratic
         floor, ``snode_rehu`` the ICNN's ReHU width, ``snode_clock`` the follow-up's time input
-        (voids the stability guarantee). The nominal field uses ``node_hidden`` and
+        (voids the stability guarantee), ``snode_tangent`` V measured from the ICNN's tangent
+        plane at the goal instead of its value there (not the follow-up's; removes the region
+        where ``V`` is its quadratic floor alone). The nominal field uses ``node_hidden`` and
         ``activation``.
     """
 
@@ -330,6 +333,7 @@ class PartConfig:
     snode_eps: float = 1e-4
     snode_rehu: float = 0.01
     snode_clock: bool = False
+    snode_tangent: bool = False
     extras: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
@@ -402,7 +406,8 @@ COMMON_KEYS = frozenset(PART_FIELDS) - {
 }
 """Keys every method accepts; the rest are method-specific (see ``Method.hyperparameters``)."""
 
-SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_clock")
+SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_clock",
+              "snode_tangent")
 """The stable NODE's keys: left out of :meth:`PartConfig.to_dict` at their defaults, so the
 saved configs of NODE^T/NODE^I runs, and of runs made before they existed, do not change."""
 

@@ -92,6 +92,15 @@ class StableSpec:
         alpha: decay rate of ``V`` along the field (the follow-up: 0.5).
         eps: weight of the quadratic floor ``eps |z|^2`` of ``V`` (the follow-up: 1e-4).
         rehu_d: the ICNN's ReHU width (the follow-up: 0.01).
+        tangent: measure ``V`` from the ICNN's tangent plane at the origin,
+            ``rehu_1(g(z) - g(0) - grad g(0) . z) + eps |z|^2``, instead of the follow-up's
+            ``rehu_1(g(z) - g(0)) + eps |z|^2``. A convex ``g`` lies above its tangent plane,
+            so the ReHU term is zero only where ``g`` is affine along the way from the origin
+            (the cell around it where no ReHU unit bends); with the follow-up's form it is
+            zero wherever ``g`` dips below ``g(0)``, a far larger region (on random weights,
+            16-39 % of states against 1-2 %), in which ``V`` is the tiny quadratic floor alone
+            and whose edge makes the field stiff (predictions stall on it:
+            docs/studies/start.md).
     """
 
     dim: int
@@ -103,6 +112,7 @@ class StableSpec:
     alpha: float = 0.5
     eps: float = 1e-4
     rehu_d: float = 0.01
+    tangent: bool = False
 
     def __post_init__(self) -> None:
         activation(self.activation)  # validates the name
@@ -249,26 +259,38 @@ def lyapunov(spec: StableSpec, weights: Sequence[Tensor], z: Tensor,
     """``V(z): [B]`` and ``grad V(z): [B, n_state]`` for ``z: [B, n_state]`` (the state, and
     the time last with the clock). ``V(0) = 0``, ``V(z) >= eps |z|^2``."""
     icnn = Icnn(spec, weights[len(spec.fhat_shapes()):], cond)
-    return _lyapunov(spec, icnn, _origin_value(icnn, spec), z)
+    return _lyapunov(spec, icnn, _origin(icnn, spec), z)
 
 
-def _origin_value(icnn: Icnn, spec: StableSpec) -> Tensor:
-    """``g(0)``, V's reference (differentiable: V(0) = 0 for every value of the weights)."""
+def _origin(icnn: Icnn, spec: StableSpec) -> tuple[Tensor, Tensor | None]:
+    """V's reference: ``g(0): [1]`` and, with ``spec.tangent``, ``grad g(0): [n_state]``
+    (else None); differentiable, so V(0) = 0 for every value of the weights."""
     w = icnn.w[0]
-    return icnn.value(torch.zeros(1, spec.n_state, dtype=w.dtype, device=w.device))
+    zero = torch.zeros(1, spec.n_state, dtype=w.dtype, device=w.device)
+    if not spec.tangent:
+        return icnn.value(zero), None
+    g0, dg0 = icnn.value_and_grad(zero)
+    return g0, dg0[0]
 
 
-def _lyapunov(spec: StableSpec, icnn: Icnn, g0: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+def _lyapunov(spec: StableSpec, icnn: Icnn, origin: tuple[Tensor, Tensor | None],
+              z: Tensor) -> tuple[Tensor, Tensor]:
     g, dg = icnn.value_and_grad(z)
-    return v_and_grad(g, g0, dg, z, spec.eps)
+    return v_and_grad(g, origin[0], dg, z, spec.eps, dg0=origin[1])
 
 
 def v_and_grad(g: Tensor, g0: Tensor, dg: Tensor, z: Tensor, eps: float,
-               record: dict | None = None) -> tuple[Tensor, Tensor]:
-    """``V = rehu_1(g - g0) + eps |z|^2: [B]`` and ``grad V: [B, n]`` from the ICNN's value
-    ``g: [B]`` and gradient ``dg: [B, n]``; ``record`` receives ``uu = g - g0`` and
-    ``r = rehu_1'(uu)``."""
-    u = g - g0
+               record: dict | None = None,
+               dg0: Tensor | None = None) -> tuple[Tensor, Tensor]:
+    """``V = rehu_1(uu) + eps |z|^2: [B]`` and ``grad V = rehu_1'(uu) (dg - dg0) + 2 eps z:
+    [B, n]`` from the ICNN's value ``g: [B]`` and gradient ``dg: [B, n]``, with ``uu = g - g0``
+    or, given ``dg0 = grad g(0): [n]`` (``StableSpec.tangent``), ``uu = g - g0 - z . dg0``;
+    ``record`` receives ``uu``, ``r = rehu_1'(uu)`` and ``grad = dg - dg0``."""
+    if dg0 is None:
+        u = g - g0
+    else:
+        u = g - g0 - z @ dg0
+        dg = dg - dg0
     outer, slope = rehu_and_grad(u, 1.0)
     v = outer + eps * (z * z).sum(dim=1)
     dv = slope.unsqueeze(1) * dg + (2.0 * eps) * z
@@ -318,17 +340,19 @@ class StableField:
         self._b0 = fhat[1] if cond is None else fhat[1] + fhat[0][:, :c] @ cond
         self._rest = fhat[2:]
         self._icnn = Icnn(spec, weights[n_fhat:], cond)
-        self._g0 = _origin_value(self._icnn, spec)  # once per set of weights
+        self._origin = _origin(self._icnn, spec)  # once per set of weights
 
     def tape_tensors(self) -> tuple[tuple[Tensor | None, ...], int, int]:
         """What the fused solvers (:mod:`~clfd_bench.learning.stable_fused`) work on:
-        ``((w0y, w0t, b0, *rest, *A_i, *c_i, *Ubar_i, g0), len(rest), number of ICNN
+        ``((w0y, w0t, b0, *rest, *A_i, *c_i, *Ubar_i, g0[, dg0]), len(rest), number of ICNN
         layers)``: the nominal field's first layer split into state ``[H, D]`` and time
         ``[H]`` (None without the clock) columns with the embedding folded into ``b0``, its
-        later layers, and the ICNN's state columns, biases, passthroughs and ``g(0)``."""
+        later layers, and the ICNN's state columns, biases, passthroughs, ``g(0)`` and, with
+        ``spec.tangent``, ``grad g(0)``."""
         icnn = self._icnn
-        tensors = (self._w0y, self._w0t, self._b0, *self._rest, *icnn.w, *icnn.b, *icnn.u,
-                   self._g0)
+        g0, dg0 = self._origin
+        tensors = (self._w0y, self._w0t, self._b0, *self._rest, *icnn.w, *icnn.b, *icnn.u, g0,
+                   *(() if dg0 is None else (dg0,)))
         return tensors, len(self._rest), len(icnn.w)
 
     def _state(self, t: Tensor | float, y: Tensor) -> Tensor:
@@ -346,9 +370,9 @@ class StableField:
 
     def lyapunov(self, t: Tensor | float, y: Tensor) -> tuple[Tensor, Tensor]:
         """``V`` and ``grad V`` at ``[y, t]`` (``[y]`` without the clock): ``[B]``, ``[B, n]``."""
-        return _lyapunov(self.spec, self._icnn, self._g0, self._state(t, y))
+        return _lyapunov(self.spec, self._icnn, self._origin, self._state(t, y))
 
     def __call__(self, t: Tensor | float, y: Tensor) -> Tensor:
         z = self._state(t, y)  # once: the nominal field and V read the same [y, t]
-        v, dv = _lyapunov(self.spec, self._icnn, self._g0, z)
+        v, dv = _lyapunov(self.spec, self._icnn, self._origin, z)
         return project(self._nominal(z), v, dv, self.spec.alpha)[:, : self.spec.dim]

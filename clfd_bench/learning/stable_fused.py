@@ -31,13 +31,15 @@ def _tape(settings: tuple, layout: tuple[int, int], tensors: tuple[Tensor | None
           record: bool) -> StableTape:
     """The tape over ``tensors`` as :meth:`StableField.tape_tensors` lays them out
     (``layout``: the number of later ``f_hat`` layers' tensors and of ICNN layers)."""
-    act, dim, clock, alpha, eps, rehu_d = settings
+    act, dim, clock, alpha, eps, rehu_d, tangent = settings
     n_rest, k = layout
     fhat = (*tensors[:3], list(tensors[3 : 3 + n_rest]))
     i = 3 + n_rest
     a, c, u = tensors[i : i + k], tensors[i + k : i + 2 * k], tensors[i + 2 * k : i + 3 * k - 1]
-    return StableTape(fhat, list(a), list(c), list(u), tensors[-1], act, dim, clock, alpha,
-                      eps, rehu_d, record)
+    g0 = tensors[i + 3 * k - 1]
+    dg0 = tensors[i + 3 * k] if tangent else None
+    return StableTape(fhat, list(a), list(c), list(u), g0, act, dim, clock, alpha,
+                      eps, rehu_d, record, dg0)
 
 
 def _sweep(tape: StableTape, method: str, y0: Tensor, times: Tensor, substeps: int):
@@ -92,7 +94,7 @@ class _FusedStable(torch.autograd.Function):
         with torch.no_grad():
             result, steps = _sweep(tape, method, y0, times, substeps)
         ctx.tape, ctx.steps, ctx.method, ctx.substeps = tape, steps, method, substeps
-        ctx.g0_shape = tensors[-1].shape
+        ctx.g0_shape = tape.g0.shape
         return result
 
     @staticmethod
@@ -104,6 +106,9 @@ class _FusedStable(torch.autograd.Function):
             ybar = _euler_reverse(tape, ctx.steps, ctx.substeps, grad_out)
         (w0y, w0t, b0, rest), da, dc, du, dg0 = tape.weight_grads()
         grads = [w0y, w0t, b0, *rest, *da, *dc, *du, dg0.reshape(ctx.g0_shape)]
+        tangent = tape.tangent_grad()
+        if tangent is not None:
+            grads.append(tangent)
         return (ybar, None, None, None, None, None, *grads)
 
 
@@ -133,7 +138,8 @@ def integrate_stable(field: StableField, y0: Tensor, times: Tensor, method: str,
         raise ValueError(f"per-sample times [B, K] need B = {y0.shape[0]}, got {times.shape}")
     times = times.to(y0.dtype)
     tensors, n_rest, n_layers = field.tape_tensors()
-    settings = (spec.activation, spec.dim, spec.clock, spec.alpha, spec.eps, spec.rehu_d)
+    settings = (spec.activation, spec.dim, spec.clock, spec.alpha, spec.eps, spec.rehu_d,
+                spec.tangent)
     layout = (n_rest, n_layers)
     if not (torch.is_grad_enabled()
             and any(t is not None and t.requires_grad for t in (y0, *tensors))):

@@ -47,6 +47,8 @@ class StableTape:
         icnn_c: ``[h_i]`` their biases (the embedding folded in).
         icnn_u: ``[h_i, h_{i-1}]`` the passthroughs ``Ubar_i`` of layers 1..k.
         g0: ``[]`` the ICNN's value at the origin.
+        dg0: ``[n]`` its gradient there when ``V`` is measured from the tangent plane
+            (:attr:`~clfd_bench.learning.stable.StableSpec.tangent`), else None.
         act: the nominal field's activation (one of the fused MLP's).
         dim, clock, alpha, eps, rehu_d: as :class:`~clfd_bench.learning.stable.StableSpec`.
         record: keep what :meth:`vjp` needs.
@@ -55,14 +57,15 @@ class StableTape:
     def __init__(self, fhat: tuple[Tensor, Tensor | None, Tensor, Sequence[Tensor]],
                  icnn_a: Sequence[Tensor], icnn_c: Sequence[Tensor],
                  icnn_u: Sequence[Tensor], g0: Tensor, act: str, dim: int, clock: bool,
-                 alpha: float, eps: float, rehu_d: float, record: bool):
+                 alpha: float, eps: float, rehu_d: float, record: bool,
+                 dg0: Tensor | None = None):
         w0y, w0t, b0, rest = fhat
         self.mlp = MLPTape(w0y, w0t, b0, rest, act, record)
         self.icnn = Icnn.from_parts(icnn_a, icnn_c, icnn_u, rehu_d)
         self.a, self.c, self.u = self.icnn.w, self.icnn.b, self.icnn.u
         self._a_t = [a.t() for a in self.a]
         self._u_t = [u.t() for u in self.u]
-        self.g0 = g0
+        self.g0, self.dg0 = g0, dg0
         self.dim, self.clock = dim, clock
         self.alpha, self.eps, self.d = alpha, eps, rehu_d
         self.record = record
@@ -83,7 +86,7 @@ class StableTape:
             fx = torch.cat([fx, torch.ones_like(fx[:, :1])], dim=1)
         z = field_state(t, y, self.clock)
         g, grad = self.icnn.value_and_grad(z, rec)
-        v, dv = v_and_grad(g, self.g0, grad, z, self.eps, rec)
+        v, dv = v_and_grad(g, self.g0, grad, z, self.eps, rec, self.dg0)
         out = project(fx, v, dv, self.alpha, rec)
         if rec is not None:
             rec["z"] = z
@@ -110,6 +113,7 @@ class StableTape:
         self._u_pairs: list[list[tuple[Tensor, Tensor]]] = [[] for _ in range(k - 1)]
         self._c_grads: list[list[Tensor]] = [[] for _ in range(k)]
         self._g0_grad: list[Tensor] = []
+        self._dg0_grad: list[Tensor] = []
 
     def vjp(self, gbar: Tensor, e: int) -> Tensor:
         """``J_e^T gbar``: the gradient w.r.t. evaluation ``e``'s input state ``[B, D]`` for
@@ -134,6 +138,9 @@ class StableTape:
         u_bar = v_bar * r["r"] + (dv_bar * r["grad"]).sum(dim=1) * ((uu > 0) & (uu < 1.0))
         w = r["r"].unsqueeze(1) * dv_bar  # gradient w.r.t. grad g: [B, n]
         self._g0_grad.append(-u_bar.sum())
+        if self.dg0 is not None:  # uu = g - g0 - z . dg0, dv = r (grad g - dg0) + 2 eps z
+            z_bar = z_bar - u_bar.unsqueeze(1) * self.dg0
+            self._dg0_grad.append(-(u_bar.unsqueeze(1) * z).sum(0) - w.sum(0))
         # grad g = sum_i A_i^T q_i, q_{i-1} = tq_i * s_{i-1}, tq_i = q_i @ Ubar_i
         p, s, q, tq, acts = r["p"], r["s"], r["q"], r["tq"], r["acts"]
         k = len(self.a) - 1
@@ -184,3 +191,11 @@ class StableTape:
               for g, c in zip(self._c_grads, self.c, strict=True)]
         dg0 = torch.stack(self._g0_grad).sum() if self._g0_grad else torch.zeros_like(self.g0)
         return fhat, da, dc, du, dg0
+
+    def tangent_grad(self) -> Tensor | None:
+        """The gradient w.r.t. ``dg0`` summed over every :meth:`vjp` call (None without it)."""
+        if self.dg0 is None:
+            return None
+        if not self._dg0_grad:
+            return torch.zeros_like(self.dg0)
+        return torch.stack(self._dg0_grad).sum(0)
