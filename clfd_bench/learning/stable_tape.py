@@ -17,7 +17,9 @@ The reverse pass (per evaluation; ``z`` the state, with the clock ``[y, t]``; th
 pre-activations ``p_i = A_i z + c_i + Ubar_i rehu_d(p_{i-1})``, ``g = p_k``; its input
 gradient ``grad g = sum_i A_i^T q_i`` with ``q_k = 1`` and ``q_{i-1} = (Ubar_i^T q_i) *
 rehu_d'(p_{i-1})``; ``V = rehu_1(g - g(0)) + eps |z|^2``, ``dV = rehu_1'(.) grad g + 2 eps z``;
-``f = f_hat - dV relu(m) / |dV|^2`` with ``m = <dV, f_hat> + alpha V``) follows these
+``f = f_hat - dV relu(m) / |dV|^2`` with ``m = <dV, f_hat> + alpha V``; with
+``StableSpec.tangent`` the ReHU's argument is ``g - g(0) - z . grad g(0)`` and ``grad g`` in
+``dV`` becomes ``grad g - grad g(0)``, ``grad g(0)`` one more input) follows these
 definitions backwards: the projection, then ``dV``'s two terms, then the ICNN's gradient
 recursion (which reaches the pre-activations through ``rehu_d''``), then its value path.
 ``tests/test_stable_fused.py`` checks every gradient against autograd in float64.

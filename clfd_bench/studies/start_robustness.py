@@ -491,7 +491,8 @@ def run_start_study(runs: dict[str, Path], out: Path, cfg: StudyConfig,
                                 setattr(rec, attr, value)
                         cached[index] = rec
                         _save_cache(cache_path, key, cached)
-                    rec.settle_time = float(settle[k])  # cached records: from this prediction
+                    else:  # a cached record: its settle time from this prediction
+                        rec.settle_time = float(settle[k])
                     records.append(rec)
                     bar.update(1)
     finally:

@@ -301,6 +301,11 @@ def plot_overview(records: list[StartRecord], methods: list[str], tasks: list[st
     return out
 
 
+def _settled_share(settle: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """``[G]``: the share of the settle times ``settle: [N]`` at or before each ``grid`` time."""
+    return (settle[None, :] <= grid[:, None]).mean(axis=1)
+
+
 def plot_settling(records: list[StartRecord], methods: list[str], tasks: list[str],
                   path: Path, horizon: float | None = None) -> Path | None:
     """How fast predictions converge: per method (one panel), the share of starts settled
@@ -323,11 +328,10 @@ def plot_settling(records: list[StartRecord], methods: list[str], tasks: list[st
         for task in tasks:
             t = np.array([r.settle_time for r in mine if r.task == task])
             if len(t):
-                ax.plot(grid, (t[None, :] <= grid[:, None]).mean(axis=1), lw=0.6, alpha=0.5)
+                ax.plot(grid, _settled_share(t, grid), lw=0.6, alpha=0.5)
         t = np.array([r.settle_time for r in mine])
         if len(t):
-            share = (t[None, :] <= grid[:, None]).mean(axis=1)
-            ax.plot(grid, share, color="k", lw=2.0,
+            ax.plot(grid, _settled_share(t, grid), color="k", lw=2.0,
                     label=f"all tasks: {np.isfinite(t).mean():.0%} settled")
             ax.legend(fontsize=7, loc="lower right")
         ax.set_title(m, fontsize=9)
