@@ -144,6 +144,7 @@ def test_missing_run_dir_says_what_to_run(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "not a trained run" in err and "clfd-bench train" in err
+    assert "--dataset robotasks|lasa" in err  # either study dataset, not only RoboTasks
     assert main(["study", "start", "--methods", "nosuch", "--out", str(tmp_path / "o")]) == 2
 
 

@@ -407,8 +407,9 @@ def run_tasks(run_dir: Path) -> list[str]:
     except RunFileError as exc:
         raise ValueError(str(exc)) from None
     if results is None or not run.has_checkpoint():
+        datasets = "|".join(STUDY_DATASETS)
         raise ValueError(f"{run_dir} is not a trained run (no results.json/checkpoint.pt); train "
-                         f"it with `clfd-bench train --method M --dataset {DATASET} --profile "
+                         f"it with `clfd-bench train --method M --dataset {datasets} --profile "
                          f"fast --no-sim --out {run_dir}` or pass --methods to train here")
     dataset = results["config"]["dataset"]
     if dataset not in STUDY_DATASETS:
