@@ -53,6 +53,7 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
     cpu = results["provenance"]["cpu"]
     assert cpu["torch_capability"] == torch.backends.cpu.get_cpu_capability()
     assert cpu["model"] and isinstance(cpu["kernel_env"], dict)
+    assert results["provenance"]["cpu_by_task"] == [cpu, cpu]
 
     # predictions on disk = the model's prediction from each demo's start, data units
     from clfd_bench.data import load_dataset
@@ -102,8 +103,35 @@ def test_killed_run_resumes_after_last_finished_task(tmp_path):
                            after_task=trained.append)
     assert trained == [1, 2]  # task 0 was not trained again
     assert any("resuming" in m for m in messages)
+    assert not any("another CPU" in m for m in messages)  # resumed where it started
     assert resumed["errors"] == reference["errors"]
     assert resumed["train_time_s"][0] == partial["train_time_s"][0]
+
+
+def test_a_run_resumed_on_another_cpu_says_so_and_records_where_each_task_was_learned(
+        tmp_path, monkeypatch):
+    """Seeds reproduce a run on one CPU only (kernels differ in rounding), so a run resumed
+    on another CPU warns and records each task's CPU; one resumed on the same CPU does not."""
+    import clfd_bench.harness.protocol as protocol
+
+    real = protocol.cpu_provenance()
+    run_training(_smoke("sg", tasks=1), tmp_path, threads=1, log=None)
+    messages: list[str] = []
+    other = {"model": "Other CPU", "torch_capability": "AVX2",
+             "kernel_env": {"ATEN_CPU_CAPABILITY": "avx2"}}
+    monkeypatch.setattr(protocol, "cpu_provenance", lambda: dict(other))
+    results = run_training(_smoke("sg", tasks=2), tmp_path, threads=1, log=messages.append)
+    assert results["provenance"]["cpu_by_task"] == [real, other]
+    assert results["provenance"]["cpu"] == other
+    warning = [m for m in messages if "another CPU" in m]
+    assert len(warning) == 1 and real["model"] in warning[0]
+    assert f"{real['torch_capability']} kernels" in warning[0]
+
+    messages.clear()  # resumed again on the second CPU: task 0 still comes from the first
+    results = run_training(_smoke("sg", tasks=3), tmp_path, threads=1, log=messages.append)
+    warning = [m for m in messages if "another CPU" in m]
+    assert len(warning) == 1 and real["model"] in warning[0] and "Other CPU" not in warning[0]
+    assert results["provenance"]["cpu_by_task"] == [real, other, other]
 
 
 def test_results_keep_other_keys_but_drop_execution_of_a_smaller_matrix(tmp_path):

@@ -90,7 +90,28 @@ def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
         "seed": config.seed,
         "torch_threads": threads,
         "cpu": cpu_provenance(),
+        "cpu_by_task": [],
     }
+
+
+def _saved_cpus(saved: dict[str, Any], done: int) -> list[dict[str, Any] | None]:
+    """The CPU of each of a resumed run's ``done`` learned tasks, from its saved provenance
+    (``None`` per task for a run saved before ``cpu_by_task`` was recorded: its ``cpu`` was
+    only the last process's)."""
+    cpus = list(saved.get("cpu_by_task") or [])[:done]
+    return cpus + [None] * (done - len(cpus))
+
+
+def _cpu_change(saved: list[dict[str, Any] | None], now: dict[str, Any]) -> str:
+    """Describe how the CPUs (model and kernel capability) of a run's saved tasks differ from
+    this process's ``now``; ``""`` when every recorded one matches."""
+    def key(cpu: dict[str, Any]) -> tuple[str, str, str]:
+        env = ", ".join(f"{k}={v}" for k, v in sorted(cpu.get("kernel_env", {}).items()))
+        return str(cpu.get("model")), str(cpu.get("torch_capability")), env
+
+    others = sorted({key(c) for c in saved if c is not None} - {key(now)})
+    return "; ".join(f"{m} with {cap} kernels{f' ({env})' if env else ''}"
+                     for m, cap, env in others)
 
 
 def _config_without_tasks(d: dict[str, Any]) -> dict[str, Any]:
@@ -223,6 +244,13 @@ def run_training(
                 f"{out} already holds {done} learned tasks, more than the {n_tasks} asked for; "
                 "use another --out directory"
             )
+        # the CPU each saved task was learned on (None: a run saved before this was recorded)
+        provenance["cpu_by_task"] = _saved_cpus(header.get("provenance") or {}, done)
+        moved = _cpu_change(provenance["cpu_by_task"], provenance["cpu"])
+        if log and moved and done < n_tasks:
+            log(f"warning: {out} was learned on another CPU ({moved}); its results will mix "
+                "that CPU's float kernels with this one's (provenance.cpu_by_task records "
+                "which task was learned where; seeds reproduce a run on one CPU only)")
         saved_state["tasks"] = state["tasks"]
         for metric in metrics:  # widen saved rows to the (possibly larger) task count
             saved_state["errors"][metric] = [
@@ -251,6 +279,7 @@ def run_training(
             state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
             state["final_loss_by_part"][kind].append(stats.final_loss)
             state["num_params_by_part"][kind].append(part.method.num_params())
+        provenance["cpu_by_task"].append(provenance["cpu"])
         state["train_time_s"].append(sum(times_by_part.values()))
         state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
         state["stored_samples"].append(
