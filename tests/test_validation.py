@@ -254,6 +254,26 @@ def test_bad_grid_launches_nothing(capsys, tmp_path, args, expected):
     assert list(tmp_path.iterdir()) == []  # nothing written anywhere, not even outside
 
 
+@pytest.mark.parametrize("argv", [
+    ["leaderboard", "--dataset", "lasaa"],
+    ["study", "sensitivity", "--dataset", "lasaa"],
+    ["study", "tasktime", "--dataset", "lasaa"],
+    ["study", "order", "--datasets", "helloworld,lasaa"],
+], ids=lambda v: " ".join(v[:2]))
+def test_a_misspelt_dataset_gets_the_closest_name_and_launches_nothing(capsys, tmp_path, argv):
+    refused(capsys, argv, tmp_path / "grid", f"clfd-bench {' '.join(argv[:-2])}: error",
+            "unknown dataset 'lasaa' (did you mean 'lasa'?)", "valid: lasa, helloworld")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_data_command_names_the_closest_dataset(capsys):
+    from clfd_bench.cli.main import main
+
+    assert main(["data", "helloworl"]) == 2
+    err = capsys.readouterr().err
+    assert "clfd-bench data: error: unknown dataset 'helloworl' (did you mean 'helloworld'?)" in err
+
+
 def test_grid_with_a_corrupt_dataset_launches_nothing(capsys, tmp_path, data_copy):
     (data_copy / "d.npy").write_bytes(b"")
     refused(capsys, GRID, tmp_path / "grid", "d.npy", "truncated or corrupt")

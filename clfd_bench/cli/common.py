@@ -9,7 +9,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-__all__ = ["add_executor_arguments", "finish", "ints", "names", "run_grid"]
+__all__ = ["add_executor_arguments", "finish", "ints", "names", "run_grid", "unknown_dataset"]
 
 
 def ints(text: str) -> list[int]:
@@ -26,6 +26,22 @@ def names(text: str) -> list[str]:
     its case."""
     parts = (x.strip() for x in text.split(","))
     return [x if ":" in x else x.lower() for x in parts if x]
+
+
+def unknown_dataset(command: str, datasets: Iterable[str]) -> bool:
+    """Print ``clfd-bench <command>: error: unknown dataset ...`` (the closest valid name, the
+    valid names) for the first of ``datasets`` the registry does not hold; True if one was
+    unknown (the caller then exits with 2)."""
+    from clfd_bench.data import DATASETS
+    from clfd_bench.harness.config import suggest
+
+    for name in datasets:
+        if name not in DATASETS:
+            print(f"clfd-bench {command}: error: unknown dataset {name!r}"
+                  f"{suggest(name, list(DATASETS))}; valid: {', '.join(DATASETS)}",
+                  file=sys.stderr)
+            return True
+    return False
 
 
 def add_executor_arguments(

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import Any
 
 __all__ = ["register", "summarise"]
@@ -51,13 +50,11 @@ def summarise(names: list[str] | None = None, order: int = 0) -> list[dict[str, 
 
 
 def _run(args: argparse.Namespace) -> int:
-    from clfd_bench.data import DATASETS
+    from clfd_bench.cli.common import unknown_dataset
 
     names = args.datasets or None
-    for name in names or []:
-        if name not in DATASETS:
-            print(f"unknown dataset {name!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
-            return 2
+    if unknown_dataset("data", names or []):
+        return 2
     rows = summarise(names, args.order)
     if args.json:
         print(json.dumps(rows, indent=1))

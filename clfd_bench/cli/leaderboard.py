@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
 from clfd_bench.leaderboard.entries import entry_help
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
@@ -27,13 +27,10 @@ def _config(text: str) -> tuple[str, str]:
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from clfd_bench.data import DATASETS
     from clfd_bench.leaderboard.runner import check_methods, run_leaderboard
     from clfd_bench.methods import MethodClassError
 
-    if args.dataset not in DATASETS:
-        print(f"clfd-bench leaderboard: error: unknown dataset {args.dataset!r}; valid: "
-              f"{', '.join(DATASETS)}", file=sys.stderr)
+    if unknown_dataset("leaderboard", [args.dataset]):
         return 2
     try:
         check_methods(args.methods)

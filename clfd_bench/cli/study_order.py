@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names
+from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -14,14 +14,11 @@ __all__ = ["register"]
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from clfd_bench.data import DATASETS
     from clfd_bench.methods import get_method_class
     from clfd_bench.studies.task_order import run_order_study, task_names
 
-    for dataset in args.datasets:
-        if dataset not in DATASETS:
-            print(f"unknown dataset {dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
-            return 2
+    if unknown_dataset("study order", args.datasets):
+        return 2
     try:
         for method in args.methods:
             get_method_class(method)

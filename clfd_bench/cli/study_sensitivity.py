@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, names
+from clfd_bench.cli.common import add_executor_arguments, finish, names, unknown_dataset
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -14,7 +14,6 @@ __all__ = ["register"]
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from clfd_bench.data import DATASETS
     from clfd_bench.harness.config import ConfigError
     from clfd_bench.methods import get_method_class
     from clfd_bench.studies.sensitivity import (
@@ -24,8 +23,7 @@ def _run(args: argparse.Namespace) -> int:
         run_sensitivity_study,
     )
 
-    if args.dataset not in DATASETS:
-        print(f"unknown dataset {args.dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+    if unknown_dataset("study sensitivity", [args.dataset]):
         return 2
     if not args.methods:
         print("--methods needs at least one method", file=sys.stderr)

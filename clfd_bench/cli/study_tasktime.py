@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
+from clfd_bench.cli.common import (
+    add_executor_arguments,
+    finish,
+    ints,
+    names,
+    run_grid,
+    unknown_dataset,
+)
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
 __all__ = ["register"]
@@ -14,12 +21,10 @@ __all__ = ["register"]
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from clfd_bench.data import DATASETS
     from clfd_bench.learning.hnet_reg import REG_MODES
     from clfd_bench.studies.task_time import study_specs, summarize, write_outputs
 
-    if args.dataset not in DATASETS:
-        print(f"unknown dataset {args.dataset!r}; valid: {', '.join(DATASETS)}", file=sys.stderr)
+    if unknown_dataset("study tasktime", [args.dataset]):
         return 2
     bad = [r for r in args.regs if r not in REG_MODES]
     if bad or not args.regs or not args.methods or not args.seeds:
