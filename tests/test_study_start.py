@@ -250,3 +250,22 @@ def test_lasa_study_with_nodes_and_horizon(tmp_path, capsys, monkeypatch):
         assert ref["settle_time"] == pytest.approx((times[first] - times[0]) / duration)
     assert (out / "start_settling.png").stat().st_size > 0
     assert (out / "start_overview.png").stat().st_size > 0
+
+
+def test_only_studies_the_named_learned_tasks(tmp_path, capsys):
+    """--only restricts the study to learned tasks; a misspelt name is refused before anything
+    is trained (with the closest name), a real task the runs did not learn after."""
+    from clfd_bench.cli.main import main
+
+    out = tmp_path / "only"
+    base = ["study", "start", "--dataset", "lasa", "--methods", "sg", "--profile", "smoke",
+            "--tasks", "2", "--starts", "2", "--no-exec", "--out", str(out)]
+    assert main([*base, "--only", "BendedLin"]) == 2
+    err = capsys.readouterr().err
+    assert "--only 'BendedLin'" in err and "did you mean 'BendedLine'?" in err
+    assert not out.exists()  # refused before training
+    assert main([*base, "--only", "BendedLine"]) == 0
+    records = json.loads((out / "records.json").read_text())
+    assert {r["task"] for r in records} == {"BendedLine"} and len(records) == 3
+    assert main([*base, "--only", "CShape"]) == 2  # a LASA shape, not learned by these runs
+    assert "not learned by every run" in capsys.readouterr().err

@@ -46,6 +46,18 @@ def _train(args: argparse.Namespace, out: Path) -> dict[str, Path]:
     return {run_label(s.run_dir(out)): s.run_dir(out) for s in specs}
 
 
+def _check_only(only: list[str], dataset: str) -> None:
+    """Refuse a ``--only`` name that is not one of ``dataset``'s tasks (the closest named)."""
+    from clfd_bench.data import DATASETS
+    from clfd_bench.harness.config import suggest
+
+    valid = sorted({n for order in DATASETS[dataset].task_names() for n in order})
+    for name in only:
+        if name not in valid:
+            raise ValueError(f"--only {name!r}: not a {dataset} task{suggest(name, valid)}; "
+                             f"valid: {', '.join(valid)}")
+
+
 def _run(args: argparse.Namespace) -> int:
     import time
 
@@ -95,11 +107,18 @@ def _run(args: argparse.Namespace) -> int:
             raise ValueError(f"the --run dirs are {dataset} runs and --dataset is "
                              f"{args.dataset}; study one dataset at a time")
         check_executable(dataset, cfg.execute)
+        _check_only(args.only, dataset)
         for label, path in (_train(args, out) if args.methods else {}).items():
             runs[label if label not in runs else f"{label}#trained"] = path
         tasks = study_tasks(runs)
         if not tasks:
             raise ValueError(f"the runs have no learned {dataset} task in common")
+        missing = [n for n in args.only if n not in tasks]
+        if missing:
+            raise ValueError(f"--only {missing[0]!r}: not learned by every run (they have "
+                             f"{', '.join(tasks)} in common)")
+        if args.only:
+            tasks = [n for n in tasks if n in args.only]
     except (KeyError, ValueError) as exc:
         print(exc.args[0], file=sys.stderr)
         return 2
@@ -161,6 +180,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="seed of the runs trained here, the demo choice and the starts")
     p.add_argument("--tasks", type=int, default=None,
                    help="train only the first K tasks (smoke tests)")
+    p.add_argument("--only", type=lambda s: [x.strip() for x in s.split(",") if x.strip()],
+                   default=[], metavar="TASKS",
+                   help="study only these learned tasks (comma list, names as in the dataset; "
+                        "default: every task the runs learned)")
     p.add_argument("--starts", type=int, default=100, help="start positions per task")
     p.add_argument("--radius", type=float, default=0.20, help="ball radius, metres")
     p.add_argument("--approach-speed", type=float, default=0.1,
