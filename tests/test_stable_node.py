@@ -319,8 +319,10 @@ def test_a_methods_snode_table_can_set_one_part_and_misplaced_part_tables_raise(
     for dataset in ("lasa", "robotasks"):
         assert resolve_config("sg", dataset, "fast", node="s", config_file=own).part(
             "position").snode_alpha == 0.3
+    shared = resolve_config("sg", "robotasks", "fast", node="s").part("orientation")
+    assert shared.snode_alpha != 0.3  # baselines/snode.toml's, untouched by [position]
     assert resolve_config("sg", "robotasks", "fast", node="s", config_file=own).part(
-        "orientation").snode_alpha == 0.1
+        "orientation").snode_alpha == shared.snode_alpha
     own.write_text(base + "\n[fast.defaults.orientation]\nlr = 0.1\n")
     with pytest.raises(ConfigError, match=r"\[orientation\] sub-table is only read under"):
         resolve_config("sg", "robotasks", "fast", config_file=own)
