@@ -248,9 +248,9 @@ def run_training(
         provenance["cpu_by_task"] = _saved_cpus(header.get("provenance") or {}, done)
         moved = _cpu_change(provenance["cpu_by_task"], provenance["cpu"])
         if log and moved and done < n_tasks:
-            log(f"warning: {out} was learned on another CPU ({moved}); its results will mix "
-                "that CPU's float kernels with this one's (provenance.cpu_by_task records "
-                "which task was learned where; seeds reproduce a run on one CPU only)")
+            log(f"warning: {out} was learned on another CPU or kernel setting ({moved}); its "
+                "results will mix those float kernels with this one's (provenance.cpu_by_task "
+                "records which task was learned where; seeds reproduce a run on one CPU only)")
         saved_state["tasks"] = state["tasks"]
         for metric in metrics:  # widen saved rows to the (possibly larger) task count
             saved_state["errors"][metric] = [
