@@ -288,6 +288,10 @@ def test_snode_settings_come_from_the_shared_file_then_the_method_then_set(tmp_p
     assert paper.node_hidden == (1000, 1000, 1000)  # the method's own width stays
     fast = resolve_config("hn", "lasa", "fast", node="s").part("position")
     assert not fast.snode_clock and fast.solver == "rk4"
+    # fast measures V from the tangent plane with a smoother ReHU than the follow-up's
+    # (docs/snode.md, "Tuning `fast`": the follow-up's V stalls predictions short of the goal)
+    assert fast.snode_tangent and not paper.snode_tangent
+    assert (paper.snode_rehu, fast.snode_rehu) == (0.01, 0.1)
     own = tmp_path / "sg.toml"  # a method file with its own [fast.snode] table
     own.write_text(baselines_file("sg").read_text() + "\n[fast.snode]\nsnode_alpha = 0.3\n")
     mine = resolve_config("sg", "lasa", "fast", node="s", config_file=own)
