@@ -16,7 +16,8 @@ from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 
 ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
-        "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2"}
+        "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
+        "wineglass": "clfd/WineGlass-v2"}
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +32,7 @@ def envs():
 def _run(env, family, demo, other_task=None):
     base = env.unwrapped
     ctx = PerturbContext(demo=demo, other=None if other_task is None else np.asarray(
-        load_task("robotasks", other_task).demos[demo]))
+        load_task(base.dataset, other_task).demos[demo]))
     return rollout(env, perturb(family, base.demo_trajectory(demo), ctx), demo=demo)
 
 
@@ -87,3 +88,34 @@ def test_beans_poured_off_target_fail(envs):
     offset = r.info["pour_offset"]  # None: nothing left the cup
     assert (r.info["spilled_fraction"] > c["max_spilled_fraction"]
             or offset is None or offset > c["pour_radius"]), r.info
+
+
+def test_a_glass_swung_straight_at_the_shelf_drags_it_through_its_tray(envs):
+    """The demos lift the glass out of its tray before they turn and carry it; a straight line
+    to the shelf, turning all the way, pushes it through the tray's front wall."""
+    for demo in (0, 5):
+        r = _run(envs["wineglass"], "shortcut", demo)
+        assert not r.success
+        assert not r.info["tray_in_place"] and r.info["release_reason"] == "slipped", r.info
+
+
+def test_a_glass_carried_lying_down_is_not_stood_upright(envs):
+    env = envs["wineglass"]
+    traj = env.unwrapped.demo_trajectory(6).copy()
+    traj[:, 2] += 0.05 * np.linspace(0.0, 1.0, len(traj))  # clear of the shelf's board
+    traj[:, 3:] = traj[0, 3:]  # the hand never turns: the glass stays on its side
+    r = rollout(env, traj, demo=6)
+    assert not r.success
+    # let go on its side (its foot 16 cm off where demo 6 lets go), it does not end standing
+    # on the shelf
+    assert r.info["release_offset"] > env.unwrapped.spec_doc["success"]["place_radius"]
+    assert not (r.info["on_shelf"] and r.info["glass_tilt_deg"] <= 10.0), r.info
+
+
+def test_a_glass_stood_and_let_go_higher_than_the_demos_fails(envs):
+    env = envs["wineglass"]
+    traj = env.unwrapped.demo_trajectory(2).copy()
+    traj[:, 2] += 0.06 * np.linspace(0.0, 1.0, len(traj)) ** 4  # the same path, 6 cm higher
+    r = rollout(env, traj, demo=2)
+    assert not r.success and r.info["release_reason"] == "opened"
+    assert r.info["release_height"] > env.unwrapped.spec_doc["success"]["max_release_height"]

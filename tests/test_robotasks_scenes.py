@@ -10,7 +10,7 @@ import pytest
 
 from clfd_bench.data import load_dataset
 from clfd_bench.envs.robotask_scenes import set_free_pose
-from clfd_bench.envs.robotask_specs import TASKS, dumps_task_spec, load_task_spec
+from clfd_bench.envs.robotask_specs import TASK_DATASETS, TASKS, dumps_task_spec, load_task_spec
 from clfd_bench.envs.robotasks import RoboTaskEnv
 from clfd_bench.sim.grasp import grip_capacity
 from clfd_bench.sim.robot import hand_pose, robot_model
@@ -92,8 +92,9 @@ def test_openbox_spec_is_what_the_demos_derive(robotasks):
 
 
 @pytest.mark.parametrize("task_name", TASKS)
-def test_start_configurations_put_the_hand_at_each_demos_first_pose(robotasks, task_name):
-    task = robotasks.tasks[robotasks.task_names.index(task_name)]
+def test_start_configurations_put_the_hand_at_each_demos_first_pose(task_name):
+    ds = load_dataset(TASK_DATASETS[task_name])
+    task = ds.tasks[ds.task_names.index(task_name)]
     qpos = np.asarray(load_task_spec(task_name)["start"]["qpos"])
     assert qpos.shape == (task.positions.shape[0], 7)
     model = robot_model()
@@ -280,6 +281,66 @@ def test_bottle_success_needs_a_low_release_where_the_demos_release_and_lying(en
     assert env.scene.success(env.data, env.grasp)[0] is False
 
 
+def test_glass_success_needs_it_standing_upright_on_the_shelf_and_the_tray_untouched(envs):
+    env = envs["wineglass"]
+    env.reset(options={"demo": 3})
+    c = load_task_spec("wineglass")["success"]
+    glass = _body(env, "glass")
+    top = np.asarray(env.spec_doc["scene"]["shelf_top"])
+    foot = 0.075  # the foot's bottom below the glass's origin (tasks/wineglass.xml)
+    upright = _quat_about([0.0, 1.0, 0.0], -np.pi / 2)  # the glass's axis (its x) up
+    standing = top + [0.0, 0.0, foot]
+    cases = [
+        ("stood on the shelf", 0.02, 0.005, standing, upright, True),
+        ("dropped from too high", c["max_release_height"] + 0.01, 0.005, standing, upright,
+         False),
+        ("let go elsewhere", 0.02, c["place_radius"] + 0.01, standing, upright, False),
+        ("upside down", 0.02, 0.005, top + [0.0, 0.0, 0.125],
+         _quat_about([0.0, 1.0, 0.0], np.pi / 2), False),
+        ("lying on the shelf", 0.02, 0.005, top + [0.0, 0.0, 0.04],
+         np.array([1.0, 0.0, 0.0, 0.0]), False),
+        ("tilted 15 deg", 0.02, 0.005, standing,
+         _quat_about([0.0, 1.0, 0.0], -np.radians(75.0)), False),
+        ("standing on the table", 0.02, 0.005, np.array([0.5, 0.3, foot]), upright, False),
+    ]
+    for name, height, offset, pos, quat, expected in cases:
+        _release_record(env, height, offset)
+        set_free_pose(env.model, env.data, glass, pos, quat)
+        mujoco.mj_forward(env.model, env.data)
+        ok, info = env.scene.success(env.data, env.grasp)
+        assert ok is expected, (name, info)
+    # Put back upright: a tray knocked 2 cm at some step fails it for good.
+    set_free_pose(env.model, env.data, glass, standing, upright)
+    _release_record(env, 0.02, 0.005)
+    mujoco.mj_forward(env.model, env.data)
+    assert env.scene.success(env.data, env.grasp)[0] is True
+    tray, start = env.scene.tray, env.scene.tray_watch.start.copy()
+    quat = env.data.xquat[tray].copy()
+    set_free_pose(env.model, env.data, tray, start + [0.0, 0.02, 0.0], quat)
+    mujoco.mj_forward(env.model, env.data)
+    env.scene.track(env.data, env.grasp)
+    set_free_pose(env.model, env.data, tray, start, quat)
+    mujoco.mj_forward(env.model, env.data)
+    ok, info = env.scene.success(env.data, env.grasp)
+    assert ok is False and info["tray_in_place"] is False
+
+
+def test_wineglass_tray_and_shelf_are_what_the_demos_derive():
+    """The tray's walls stand 1.5 cm outside where the demos move the glass below their top,
+    its base 1.5 cm under the glass; the shelf 1.5 cm under the glass at the demos' ends."""
+    spec = load_task_spec("wineglass")
+    s, d = spec["scene"], spec["derived"]
+    extent = np.asarray(d["tray_glass_extent"])
+    np.testing.assert_allclose(np.asarray(s["tray_walls"]) - extent,
+                               [-0.015, 0.015, -0.015, 0.015], atol=1e-9)
+    base_top = s["stand_top"][2] + s["tray_base_thickness"]
+    assert min(d["start_lowest_z"]) - base_top == pytest.approx(0.015)
+    assert base_top + s["tray_wall_height"] == pytest.approx(max(d["start_lowest_z"]) + 0.024)
+    assert min(d["glass_end_lowest_z"]) - s["shelf_top"][2] >= 0.015 - 1e-9
+    assert min(d["shelf_path_clearance"]) >= 0.015 - 5e-4
+    assert all(d["demo_replay_success"])
+
+
 def test_plate_success_fails_once_the_rack_was_knocked(envs):
     env = envs["platestandingtolying"]
     env.reset(options={"demo": 0})
@@ -292,7 +353,7 @@ def test_plate_success_fails_once_the_rack_was_knocked(envs):
     assert env.scene.success(env.data, env.grasp)[0] is True
     # The rack knocked 3 cm and put back: it was knocked at some step.
     rack = env.scene.rack
-    start = env.scene.rack_start.copy()
+    start = env.scene.rack_watch.start.copy()
     quat = env.data.xquat[rack].copy()
     set_free_pose(env.model, env.data, rack, start + [0.03, 0.0, 0.0], quat)
     mujoco.mj_forward(env.model, env.data)

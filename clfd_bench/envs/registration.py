@@ -8,6 +8,7 @@ Ids (each env has its own version, `env_version(name)`; all are `-v2` today):
 | `clfd/BottleShelving-v2` | RoboTasks `bottle2shelf` | same |
 | `clfd/PlateStacking-v2` | RoboTasks `platestandingtolying` | same |
 | `clfd/Pouring-v2` | RoboTasks `pouring` | same |
+| `clfd/WineGlass-v2` | RoboTasks9 `wineglass` | same |
 | `clfd/HelloWorld-<letter>-v2` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
 | `clfd/HelloWorld-v2` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
 | `clfd/LASA-<Shape>-v2` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
@@ -34,6 +35,7 @@ ROBOTASKS_ENVS: dict[str, str] = {
     "BottleShelving": "bottle2shelf",
     "PlateStacking": "platestandingtolying",
     "Pouring": "pouring",
+    "WineGlass": "wineglass",
 }
 ROBOTASKS_ENTRY_POINT = "clfd_bench.envs.robotasks:RoboTaskEnv"
 HELLOWORLD_LETTERS: tuple[str, ...] = ("h", "e", "l", "o", "w", "r", "d")

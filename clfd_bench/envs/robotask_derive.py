@@ -20,6 +20,11 @@ number's procedure as a comment next to it. What is derived:
   the demos are replayed over a flat tray, wide enough for 95 % of them (+ a bean radius +
   1 cm), its rim 2 cm under the lowest point the cup reaches in the demos; the bean-count
   thresholds from the demos replayed into that container;
+- wineglass (RoboTasks9): the stand's top (the drying tray's base) 1.5 cm under the lowest
+  point the glass reaches in the first fifth of the demos; the tray's walls 1.5 cm clear of where
+  the demos move the glass below the walls' top (2.4 cm up the glass) in that fifth; the shelf
+  as the bottle's, under the glass's foot at the demos' ends; the release height and place
+  radius bounds;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
   tracking; a demo whose backward start does not track gets the IK solution of its first pose
@@ -39,7 +44,7 @@ import mujoco
 import numpy as np
 
 from clfd_bench.data import load_dataset
-from clfd_bench.envs.robotask_specs import load_task_spec
+from clfd_bench.envs.robotask_specs import TASK_DATASETS, load_task_spec
 from clfd_bench.envs.robotasks import RoboTaskEnv
 from clfd_bench.resources import resource_path
 from clfd_bench.sim.robot import robot_model
@@ -118,6 +123,20 @@ DESIGN: dict[str, dict[str, Any]] = {
         "success": {"max_tilt_deg": 25.0, "min_height": 0.0, "max_height": 0.03,
                     "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
         "camera": {"distance": 1.25, "azimuth": 140.0, "elevation": -24.0},
+    },
+    "wineglass": {
+        "task": {"physics_dt": 0.002},
+        "grasp": {"kind": "weld", "body": "glass", **GRIP, "contact": "line_x",
+                  "contact_radius": 0.0045, "max_slip": 0.03, "max_slip_angle_deg": 30.0,
+                  "closed_opening": 0.0045, "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": IDENTITY},
+        "scene": {"shelf_half_size": [0.1, 0.1], "clearance": POSITION_MARGIN,
+                  "tray_fraction": 0.2, "tray_clearance": POSITION_MARGIN,
+                  "tray_base_thickness": 0.005, "tray_wall_thickness": 0.008,
+                  "tray_rise": 0.024, "stand_margin": 0.02},
+        "success": {"max_tilt_deg": 10.0, "min_height": -0.005, "max_height": 0.01,
+                    "max_tray_shift": 0.01, "max_tray_tilt_deg": 10.0},
+        "camera": {"distance": 1.2, "azimuth": 150.0, "elevation": -22.0},
     },
     "pouring": {
         "task": {"physics_dt": 0.002, "release_after": False},
@@ -553,6 +572,171 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
     }
 
 
+def _surface_points(model: mujoco.MjModel, body: str, n: int = 24) -> np.ndarray:
+    """[P, 3] points on the surface of `body`'s cylinder and capsule geoms (rings at their ends,
+    capsules' hemispheres in rings too), in the body's frame."""
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    ang = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=1)
+    out = []
+    for g in np.flatnonzero(model.geom_bodyid == bid):
+        r, h = model.geom_size[g][:2]
+        kind = model.geom_type[g]
+        if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+            local = [r * ring + [0.0, 0.0, z] for z in (-h, h)]
+        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            local = []
+            for phi in np.linspace(0.0, np.pi / 2, 5):
+                for side in (-1.0, 1.0):
+                    local.append(r * np.cos(phi) * ring
+                                 + [0.0, 0.0, side * (h + r * np.sin(phi))])
+        else:
+            raise ValueError(f"_surface_points supports cylinders and capsules; {body!r} has "
+                             f"geom type {mujoco.mjtGeom(kind).name}")
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        out.append(np.concatenate(local) @ rot.reshape(3, 3).T + model.geom_pos[g])
+    return np.concatenate(out)
+
+
+def _tray_extent(task, grasp: dict[str, Any], top: float, n_samples: int) -> np.ndarray:
+    """[4] the extent (x_lo, x_hi, y_lo, y_hi) in the tray frame (origin under the grasp point
+    at the start, x along the glass's axis) of the glass's surface below `top` (world z) over
+    the first `n_samples` of every demo: where the tray's walls must not be."""
+    model, _ = _task_model("wineglass")
+    pts_local = _surface_points(model, "glass")
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    g = grasp_points(task.positions[:, :n_samples], task.quaternions[:, :n_samples])
+    for n in range(len(g)):
+        origin, ex, ey = None, None, None
+        for t in range(n_samples):
+            p, q = prop_pose(g[n, t], task.quaternions[n, t], grasp["prop_pos"],
+                             grasp["prop_quat"])
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, q)
+            rot = rot.reshape(3, 3)
+            if origin is None:
+                yaw = np.arctan2(rot[1, 0], rot[0, 0])
+                ex = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+                ey = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+                origin = g[n, 0]
+            pts = p + pts_local @ rot.T
+            near = pts[pts[:, 2] <= top] - origin
+            if len(near):
+                xy = np.stack([near @ ex, near @ ey], axis=1)
+                lo, hi = np.minimum(lo, xy.min(0)), np.maximum(hi, xy.max(0))
+    return np.array([lo[0], hi[0], lo[1], hi[1]])
+
+
+def _glass_feet(task, grasp: dict[str, Any], t: int = -1) -> tuple[np.ndarray, np.ndarray]:
+    """The glass held at every demo's sample `t`: its lowest point [N] and its foot's centre
+    [N, 3]."""
+    model, data = _task_model("wineglass")
+    foot = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "glass_foot")
+    sites = grasp_points(task.positions[:, t], task.quaternions[:, t])
+    lows, feet = np.empty(len(sites)), np.empty((len(sites), 3))
+    for n in range(len(sites)):
+        p, q = prop_pose(sites[n], task.quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
+        _place(model, data, "glass", p, q)
+        lows[n] = lowest_point(model, data, "glass")
+        feet[n] = data.geom_xpos[foot]
+    return lows, feet
+
+
+def _derive_glass(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = design["grasp"]
+    n_tray = int(task.positions.shape[1] * d["tray_fraction"])
+    start_lows, _ = _held_prop_lows("wineglass", "glass", task.positions[:, :n_tray],
+                                    task.quaternions[:, :n_tray], grasp)
+    start_lows = start_lows.min(1)
+    base = float(d["tray_base_thickness"])
+    stand_z = float(start_lows.min() - d["tray_clearance"] - base)
+    wall_height = float(start_lows.max() + d["tray_rise"] - (stand_z + base))
+    extent = _tray_extent(task, grasp, stand_z + base + wall_height, n_tray)
+    c = d["tray_clearance"]
+    walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
+             float(extent[3] + c)]
+    # The stand: under every demo's tray (each lies under its own start grasp point, turned
+    # with its glass), `stand_margin` beyond the farthest wall.
+    g0 = grasp_points(task.positions[:, 0], task.quaternions[:, 0])
+    axes = np.stack([_hand_x(q) for q in task.quaternions[:, 0]])
+    yaws = np.arctan2(axes[:, 1], axes[:, 0])
+    yaw = float(np.arctan2(np.sin(yaws).mean(), np.cos(yaws).mean()))
+    centre = g0[:, :2].mean(0)
+    corners = np.array([[x, y] for x in walls[:2] for y in walls[2:]])
+    ex, ey = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+    reach = []
+    for n in range(len(g0)):
+        e1 = np.array([np.cos(yaws[n]), np.sin(yaws[n])])
+        e2 = np.array([-np.sin(yaws[n]), np.cos(yaws[n])])
+        world = g0[n, :2] + corners[:, :1] * e1 + corners[:, 1:] * e2 - centre
+        reach.append(np.stack([world @ ex, world @ ey], axis=1))
+    reach = np.concatenate(reach)
+    margin = float(d["tray_wall_thickness"] + d["stand_margin"])
+    lo, hi = reach.min(0) - margin, reach.max(0) + margin
+    mid = centre + (lo[0] + hi[0]) / 2 * ex + (lo[1] + hi[1]) / 2 * ey
+    # The shelf: under the feet at the demos' last poses, like the bottle's.
+    lows, feet = _glass_feet(task, grasp)
+    fcentre = feet[:, :2].mean(0)
+    scene = {"table_z": 0.0,
+             "stand_top": [float(mid[0]), float(mid[1]), stand_z],
+             "stand_half_size": [float(hi[0] - lo[0]) / 2, float(hi[1] - lo[1]) / 2],
+             "stand_yaw_deg": float(np.degrees(yaw)),
+             "tray_walls": walls, "tray_wall_height": wall_height,
+             "tray_base_thickness": base, "tray_wall_thickness": d["tray_wall_thickness"],
+             "shelf_top": [float(fcentre[0]), float(fcentre[1]),
+                           float(lows.min() - d["clearance"])],
+             "shelf_half_size": d["shelf_half_size"], "shelf_yaw_deg": 0.0,
+             "place_centre": feet[:, :2]}
+    top, gaps = _lower_until_clear(task, _doc("wineglass", design, scene, {}, starts), "glass",
+                                   "shelf_top", ("shelf_board", "shelf_support"),
+                                   d["clearance"])
+    place = _place_bounds(lows, feet, top)
+    return {
+        "scene": scene,
+        "success": place["success"],
+        "derived": {"start_lowest_z": start_lows, "glass_end_lowest_z": lows,
+                    "glass_end_foot_centre": feet, "shelf_path_clearance": gaps,
+                    "tray_glass_extent": extent, **place["derived"]},
+        "comments": {"scene": {
+            "table_z": "the table top: at the robot's base (0); the glass lies and ends higher, "
+                       "on the stand and the shelf",
+            "stand_top": "the top of the stand the tray lies on: the tray's base 1.5 cm under "
+                         "the lowest point the glass reaches in the first fifth of the demos "
+                         "([derived] start_lowest_z, min); centred under the demos' trays",
+            "stand_half_size": "the stand reaches 2 cm (design) beyond every demo's tray "
+                               "(each under its own start grasp point, turned with its glass)",
+            "tray_walls": "the inner faces of the tray's walls (tray frame: origin on the "
+                          "stand under the glass's grasp point at the start, x along the "
+                          "glass's axis; x_lo, x_hi, y_lo, y_hi): 1.5 cm clear of where the "
+                          "demos move the glass below the walls' top in their first fifth "
+                          "([derived] tray_glass_extent)",
+            "tray_wall_height": "the walls' top above the tray's base: 2.4 cm (design) up "
+                                "every demo's glass from its lowest point at the start (the "
+                                "demos lift the glass ~2 cm before they move it sideways)",
+            "shelf_top": "centre of the shelf's top: under the mean of the glass's foot at the "
+                         "demos' last poses, 1.5 cm under the lowest point the glass reaches "
+                         "there, and lower if needed until every demo's glass stays 1.5 cm "
+                         "clear of the shelf on its way ([derived] shelf_path_clearance)",
+            "place_centre": "per demo j: where the glass's foot centre (x, y) is when demo j "
+                            "lets it go (the held glass at demo j's last pose)"},
+            "success": {
+            **place["comments"],
+            "max_tray_shift": "design: a tray moved more than this (m) at any step has been "
+                              "knocked",
+            "max_tray_tilt_deg": "design: a tray tilted more than this at any step has been "
+                                 "knocked"}},
+    }
+
+
+def _hand_x(quat: np.ndarray) -> np.ndarray:
+    """[3] the hand's x axis in the world for a hand quaternion [4] (w, x, y, z)."""
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(quat, dtype=float) / np.linalg.norm(quat))
+    return rot.reshape(3, 3)[:, 0]
+
+
 def _doc(task_name: str, design: dict[str, Any], scene: dict[str, Any],
          success: dict[str, Any], starts: np.ndarray) -> dict[str, Any]:
     """A provisional spec (for replaying the demos while deriving)."""
@@ -613,7 +797,8 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 
 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
-           "platestandingtolying": _derive_plate, "pouring": _derive_pouring}
+           "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
+           "wineglass": _derive_glass}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {
@@ -635,7 +820,7 @@ def derive_spec(task_name: str, with_starts: bool = True,
     """The spec of a RoboTasks task as {table: {key: value}}, from the dataset.
 
     Args:
-        task_name: "openbox", "bottle2shelf", "platestandingtolying" or "pouring".
+        task_name: a task of `robotask_specs.TASKS` ("openbox", ..., "wineglass").
         with_starts: compute the start configurations (~20 s per task); False keeps those of
             the existing `tasks/<task>.toml`.
         comments: if given, filled with {table: {key: how the value was derived}} for
@@ -643,7 +828,8 @@ def derive_spec(task_name: str, with_starts: bool = True,
     """
     if task_name not in DESIGN:
         raise KeyError(f"no RoboTasks task {task_name!r}; valid: {sorted(DESIGN)}")
-    ds = load_dataset("robotasks")
+    dataset = TASK_DATASETS[task_name]
+    ds = load_dataset(dataset)
     task = ds.tasks[ds.task_names.index(task_name)]
     design = DESIGN[task_name]
     if with_starts:
@@ -655,7 +841,7 @@ def derive_spec(task_name: str, with_starts: bool = True,
         errors = old["derived"]["start_forward_tracking_error_max"]
     derived = _DERIVE[task_name](task, design, starts)
     doc: dict[str, dict[str, Any]] = {
-        "task": {"name": task_name, "dataset": "robotasks", **design["task"]},
+        "task": {"name": task_name, "dataset": dataset, **design["task"]},
         "grasp": {**design["grasp"], **derived.get("grasp", {})},
         "scene": dict(derived["scene"]),
         "success": {**design["success"], **derived.get("success", {})},

@@ -1,4 +1,4 @@
-"""The four RoboTasks scenes: where the props are for a demo and what counts as success.
+"""The RoboTasks scenes: where the props are for a demo and what counts as success.
 
 Each scene reads its numbers from the task spec (`tasks/<task>.toml`, see
 `clfd_bench.envs.robotask_specs`), edits the composed `MjSpec` (table, poses and sizes the spec
@@ -21,6 +21,12 @@ end state alone:
   empties it (where its mouth is, on average, as the beans leave it: within `pour_radius` of
   demo j's); >= `min_fraction` of the beans are in the container at the end and at most
   `max_spilled_fraction` ever landed outside it (on the table, the container's rim, ...).
+- wineglass (held: the glass, by the stem, welded; RoboTasks9): the drying tray it lies in is
+  never (at any step) moved more than `max_tray_shift` or tilted more than
+  `max_tray_tilt_deg`; held until the gripper opens, at that moment its lowest point at most
+  `max_release_height` above the shelf and its foot within `place_radius` of where demo j lets
+  it go; at the end it stands upright on the shelf (axis within `max_tilt_deg` of vertical,
+  bowl up, the foot's bottom within [`min_height`, `max_height`] of the shelf's top).
 
 Every scene stands on a table (`[scene] table_z`, the height of its top in the robot base frame;
 the robot stands on it, on a mount when the table is lower than the robot's base). The table top
@@ -343,6 +349,31 @@ class OpenBoxScene(Scene):
                     "lid_opened_by_grasp": bool(opened)}
 
 
+class KnockWatch:
+    """Follows a free body that must not be knocked (a dish rack, a drying tray): its largest
+    shift (m) from where it was put at reset and its largest tilt (deg) at any step."""
+
+    def __init__(self, body: int):
+        self.body = body
+        self.start = np.zeros(3)
+
+    def place(self, start: np.ndarray) -> None:
+        """Where the body was put at reset (world position [3])."""
+        self.start = np.asarray(start, dtype=float).copy()
+
+    def track(self, data: mujoco.MjData, rec: dict[str, Any], name: str) -> None:
+        """Updates `rec[f"max_{name}_shift"]` (m) and `rec[f"max_{name}_tilt_deg"]`."""
+        p, s0 = data.xpos[self.body], self.start
+        shift = math.sqrt((p[0] - s0[0]) ** 2 + (p[1] - s0[1]) ** 2 + (p[2] - s0[2]) ** 2)
+        cos_tilt = abs(float(data.xmat[self.body, 8]))  # the body's z axis' world z component
+        key_shift, key_tilt = f"max_{name}_shift", f"max_{name}_tilt_deg"
+        if shift > rec[key_shift]:
+            rec[key_shift] = shift
+        tilt = math.degrees(math.acos(min(1.0, cos_tilt)))
+        if tilt > rec[key_tilt]:
+            rec[key_tilt] = tilt
+
+
 class _PlaceScene(Scene):
     """A held prop laid on a support (shelf, platform): the release and the end state count."""
 
@@ -454,7 +485,7 @@ class PlateScene(_PlaceScene):
         super().bind(model)
         self.disc = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate_disc")
         self.rack = _id(model, mujoco.mjtObj.mjOBJ_BODY, "rack")
-        self.rack_start = np.zeros(3)
+        self.rack_watch = KnockWatch(self.rack)
 
     def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
         return data.geom_xpos[self.disc]
@@ -469,22 +500,14 @@ class PlateScene(_PlaceScene):
         yaw = float(np.arctan2(in_plane[1], in_plane[0]))
         pos = np.array([centre[0], centre[1], self.table_z])
         set_free_pose(self.model, data, self.rack, pos, _yaw_quat(yaw))
-        self.rack_start = pos
+        self.rack_watch.place(pos)
 
     def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
         super().start_record(data, grasp)
         self.record.update({"max_rack_shift": 0.0, "max_rack_tilt_deg": 0.0})
 
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
-        p, s0 = data.xpos[self.rack], self.rack_start
-        shift = math.sqrt((p[0] - s0[0]) ** 2 + (p[1] - s0[1]) ** 2 + (p[2] - s0[2]) ** 2)
-        cos_tilt = abs(float(data.xmat[self.rack, 8]))  # the rack's z axis' world z component
-        rec = self.record
-        if shift > rec["max_rack_shift"]:
-            rec["max_rack_shift"] = shift
-        tilt = math.degrees(math.acos(min(1.0, cos_tilt)))
-        if tilt > rec["max_rack_tilt_deg"]:
-            rec["max_rack_tilt_deg"] = tilt
+        self.rack_watch.track(data, self.record, "rack")
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
@@ -506,12 +529,116 @@ class PlateScene(_PlaceScene):
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()
-        state["rack_start"] = self.rack_start.copy()
+        state["rack_start"] = self.rack_watch.start.copy()
         return state
 
     def restore_scene_state(self, state: dict[str, Any]) -> None:
         super().restore_scene_state(state)
-        self.rack_start = np.asarray(state["rack_start"], dtype=float).copy()
+        self.rack_watch.place(state["rack_start"])
+
+
+class GlassScene(_PlaceScene):
+    """A wine glass lying in a drying tray (a base and four walls, one free body) on a stand; a
+    shelf where the demos stand it. Success: see the module docstring (the tray never knocked;
+    released by opening, low and where the demos release it; standing upright on the
+    shelf)."""
+
+    object_bodies = ("glass", "tray")
+    prop, support, support_half_key = "glass", "shelf", "shelf_half_size"
+    walls = ("tray_wall_back", "tray_wall_front", "tray_wall_right", "tray_wall_left")
+
+    def edit_spec(self, spec: mujoco.MjSpec) -> None:
+        super().edit_spec(spec)
+        s = self.scene
+        _support(spec, "shelf", s["shelf_top"], s["shelf_half_size"],
+                 np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
+                 "shelf_support")
+        _support(spec, "stand", s["stand_top"], s["stand_half_size"],
+                 np.radians(s.get("stand_yaw_deg", 0.0)), self.table_z, "stand_top",
+                 "stand_support")
+        # The tray (tray frame: origin on the stand's top under the glass's grasp point at the
+        # start, x along the glass's axis): walls' inner faces at `tray_walls` (x_lo, x_hi,
+        # y_lo, y_hi), their tops `tray_wall_height` above the tray's base.
+        t = float(s.get("tray_base_thickness", 0.005))
+        w = float(s.get("tray_wall_thickness", 0.008)) / 2
+        height = float(s["tray_wall_height"])
+        x0, x1, y0, y1 = (float(v) for v in s["tray_walls"])
+        cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
+        zc, hz = t + height / 2, height / 2
+        for name, pos, size in (
+                ("tray_wall_back", [x0 - w, cy, zc], [w, hy + 2 * w, hz]),
+                ("tray_wall_front", [x1 + w, cy, zc], [w, hy + 2 * w, hz]),
+                ("tray_wall_right", [cx, y0 - w, zc], [hx, w, hz]),
+                ("tray_wall_left", [cx, y1 + w, zc], [hx, w, hz])):
+            g = spec.geom(name)
+            g.pos, g.size = pos, size
+        base = spec.geom("tray_base")
+        base.size = [hx + 2 * w, hy + 2 * w, t / 2]
+        base.pos = [cx, cy, t / 2]
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.foot = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "glass_foot")
+        self.tray = _id(model, mujoco.mjtObj.mjOBJ_BODY, "tray")
+        self.tray_watch = KnockWatch(self.tray)
+        self._foot_half = float(model.geom_size[self.foot][1])
+
+    def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] the centre of the glass's foot disc."""
+        return data.geom_xpos[self.foot]
+
+    def foot_bottom(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] the centre of the foot's bottom face (the glass's axis points from it to the
+        bowl, the glass body's x)."""
+        axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
+        return data.geom_xpos[self.foot] - self._foot_half * axis
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
+        self.place_held_prop(data, grasp)
+        mujoco.mj_kinematics(self.model, data)
+        # The tray lies on the stand under the grasp point, turned with the glass's axis.
+        grasp_pt = data.site_xpos[self.grasp_site]
+        axis = data.xmat[grasp.body_id].reshape(3, 3)[:, 0]
+        yaw = float(np.arctan2(axis[1], axis[0]))
+        pos = np.array([grasp_pt[0], grasp_pt[1], float(self.scene["stand_top"][2])])
+        set_free_pose(self.model, data, self.tray, pos, _yaw_quat(yaw))
+        self.tray_watch.place(pos)
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        super().start_record(data, grasp)
+        self.record.update({"max_tray_shift": 0.0, "max_tray_tilt_deg": 0.0})
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.tray_watch.track(data, self.record, "tray")
+
+    def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        placed, info = self._placed(data, grasp)
+        on_top, height = self._on_support(data, self.foot_bottom(data))
+        axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
+        tilt = float(np.degrees(np.arccos(np.clip(axis[2], -1.0, 1.0))))  # 180: upside down
+        upright = tilt <= float(c["max_tilt_deg"])
+        standing = float(c["min_height"]) <= height <= float(c["max_height"])
+        rec = self.record
+        tray_ok = bool(rec["max_tray_shift"] <= float(c["max_tray_shift"])
+                       and rec["max_tray_tilt_deg"] <= float(c["max_tray_tilt_deg"]))
+        ok = bool(placed and on_top and upright and standing and tray_ok
+                  and not grasp.held(data))
+        info.update({"glass_tilt_deg": tilt, "glass_foot_height": height, "on_shelf": on_top,
+                     "max_tray_shift": float(rec["max_tray_shift"]),
+                     "max_tray_tilt_deg": float(rec["max_tray_tilt_deg"]),
+                     "tray_in_place": tray_ok})
+        return ok, info
+
+    def scene_state(self) -> dict[str, Any]:
+        state = super().scene_state()
+        state["tray_start"] = self.tray_watch.start.copy()
+        return state
+
+    def restore_scene_state(self, state: dict[str, Any]) -> None:
+        super().restore_scene_state(state)
+        self.tray_watch.place(state["tray_start"])
 
 
 class PouringScene(Scene):
@@ -687,6 +814,7 @@ SCENES: dict[str, type[Scene]] = {
     "bottle2shelf": BottleScene,
     "platestandingtolying": PlateScene,
     "pouring": PouringScene,
+    "wineglass": GlassScene,
 }
 
 

@@ -33,7 +33,12 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-TASKS: tuple[str, ...] = ("openbox", "bottle2shelf", "platestandingtolying", "pouring")
+#: Every task with a scene -> the dataset its demonstrations come from.
+TASK_DATASETS: dict[str, str] = {
+    "openbox": "robotasks", "bottle2shelf": "robotasks", "platestandingtolying": "robotasks",
+    "pouring": "robotasks", "wineglass": "robotasks9",
+}
+TASKS: tuple[str, ...] = tuple(TASK_DATASETS)
 _REQUIRED = {"task": ("name",), "grasp": ("kind", "body"), "scene": (), "success": (),
              "start": ("qpos",)}
 
