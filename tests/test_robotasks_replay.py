@@ -17,7 +17,7 @@ from clfd_bench.execution.rollout import rollout
 
 ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
         "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
-        "wineglass": "clfd/WineGlass-v2"}
+        "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2"}
 
 
 @pytest.fixture(scope="module")
@@ -119,3 +119,26 @@ def test_a_glass_stood_and_let_go_higher_than_the_demos_fails(envs):
     r = rollout(env, traj, demo=2)
     assert not r.success and r.info["release_reason"] == "opened"
     assert r.info["release_height"] > env.unwrapped.spec_doc["success"]["max_release_height"]
+
+
+def test_a_pan_swung_straight_at_the_stove_knocks_its_rack(envs):
+    """The demos pull the pan back along its rack before they lift and turn it; a straight
+    line to the stove drives it through the rack's side wall."""
+    for demo in (1, 8):
+        r = _run(envs["pan2stove"], "shortcut", demo)
+        assert not r.success and not r.info["rack_in_place"], r.info
+
+
+def test_a_pan_turned_only_half_way_is_not_set_down_flat(envs):
+    env = envs["pan2stove"]
+    base = env.unwrapped
+    traj = base.demo_trajectory(4).copy()
+    q0 = traj[0, 3:]
+    for t in range(len(traj)):  # half of each pose's turn from the start (slerp)
+        q = traj[t, 3:] * (1.0 if float(traj[t, 3:] @ q0) >= 0 else -1.0)
+        angle = np.arccos(np.clip(float(q @ q0), -1.0, 1.0))
+        if angle > 1e-9:
+            traj[t, 3:] = (np.sin(angle / 2) * q0 + np.sin(angle / 2) * q) / np.sin(angle)
+    traj[:, 3:] /= np.linalg.norm(traj[:, 3:], axis=1, keepdims=True)
+    r = rollout(env, traj, demo=4)
+    assert not r.success, r.info

@@ -314,7 +314,7 @@ def test_glass_success_needs_it_standing_upright_on_the_shelf_and_the_tray_untou
     _release_record(env, 0.02, 0.005)
     mujoco.mj_forward(env.model, env.data)
     assert env.scene.success(env.data, env.grasp)[0] is True
-    tray, start = env.scene.tray, env.scene.tray_watch.start.copy()
+    tray, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
     quat = env.data.xquat[tray].copy()
     set_free_pose(env.model, env.data, tray, start + [0.0, 0.02, 0.0], quat)
     mujoco.mj_forward(env.model, env.data)
@@ -339,6 +339,57 @@ def test_wineglass_tray_and_shelf_are_what_the_demos_derive():
     assert min(d["glass_end_lowest_z"]) - s["shelf_top"][2] >= 0.015 - 1e-9
     assert min(d["shelf_path_clearance"]) >= 0.015 - 5e-4
     assert all(d["demo_replay_success"])
+
+
+def test_pan_success_needs_it_flat_on_the_stove_bottom_down_and_the_rack_untouched(envs):
+    env = envs["pan2stove"]
+    env.reset(options={"demo": 5})
+    c = load_task_spec("pan2stove")["success"]
+    pan = _body(env, "pan")
+    top = np.asarray(env.spec_doc["scene"]["stove_top"])
+    down = np.array([0.0, 1.0, 0.0, 0.0])  # the pan's z (rim -> bottom) down: lying flat
+    # the bottom's outer face 4.7 cm along z from the handle; its centre 13 cm along x
+    flat = top + [-0.13, 0.0, 0.047]
+    cases = [
+        ("set down flat", 0.03, 0.005, flat, down, True),
+        ("dropped from too high", c["max_release_height"] + 0.01, 0.005, flat, down, False),
+        ("let go elsewhere", 0.03, c["place_radius"] + 0.01, flat, down, False),
+        ("upside down", 0.03, 0.005, top + [-0.13, 0.0, 0.002],
+         np.array([1.0, 0.0, 0.0, 0.0]), False),
+        ("tilted 25 deg", 0.03, 0.005, flat,
+         _quat_about([1.0, 0.0, 0.0], np.pi - np.radians(25.0)), False),
+        ("off the stove", 0.03, 0.005, top + [-0.13, 0.4, 0.047], down, False),
+    ]
+    for name, height, offset, pos, quat, expected in cases:
+        _release_record(env, height, offset)
+        set_free_pose(env.model, env.data, pan, pos, quat)
+        mujoco.mj_forward(env.model, env.data)
+        ok, info = env.scene.success(env.data, env.grasp)
+        assert ok is expected, (name, info)
+    set_free_pose(env.model, env.data, pan, flat, down)
+    _release_record(env, 0.03, 0.005)
+    rack, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
+    quat = env.data.xquat[rack].copy()
+    set_free_pose(env.model, env.data, rack, start + [0.02, 0.0, 0.0], quat)
+    mujoco.mj_forward(env.model, env.data)
+    env.scene.track(env.data, env.grasp)
+    set_free_pose(env.model, env.data, rack, start, quat)
+    mujoco.mj_forward(env.model, env.data)
+    ok, info = env.scene.success(env.data, env.grasp)
+    assert ok is False and info["rack_in_place"] is False
+
+
+def test_pan2stove_rack_and_stove_are_what_the_demos_derive():
+    spec = load_task_spec("pan2stove")
+    s, d = spec["scene"], spec["derived"]
+    np.testing.assert_allclose(np.asarray(s["tray_walls"]) - np.asarray(d["rack_pan_extent"]),
+                               [-0.015, 0.015, -0.015, 0.015], atol=1e-9)
+    base_top = s["table_z"] + s["tray_base_thickness"]
+    assert min(d["start_lowest_z"]) - base_top == pytest.approx(0.015)
+    assert base_top + s["tray_wall_height"] == pytest.approx(max(d["start_lowest_z"]) + 0.024)
+    assert min(d["pan_end_lowest_z"]) - s["stove_top"][2] >= 0.015 - 1e-9
+    assert min(d["stove_path_clearance"]) >= 0.015 - 5e-4
+    assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
 
 
 def test_plate_success_fails_once_the_rack_was_knocked(envs):

@@ -25,6 +25,10 @@ number's procedure as a comment next to it. What is derived:
   the demos move the glass below the walls' top (2.4 cm up the glass) in that fifth; the shelf
   as the bottle's, under the glass's foot at the demos' ends; the release height and place
   radius bounds;
+- pan2stove (RoboTasks9): the table 1.5 cm + the rack's base under the lowest point the pan
+  reaches in the first fifth of the demos; the rack's walls as the glass tray's; the stove as
+  the bottle's shelf, under the pan at the demos' ends; the release height and place radius
+  bounds;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
   tracking; a demo whose backward start does not track gets the IK solution of its first pose
@@ -137,6 +141,19 @@ DESIGN: dict[str, dict[str, Any]] = {
         "success": {"max_tilt_deg": 10.0, "min_height": -0.005, "max_height": 0.01,
                     "max_tray_shift": 0.01, "max_tray_tilt_deg": 10.0},
         "camera": {"distance": 1.2, "azimuth": 150.0, "elevation": -22.0},
+    },
+    "pan2stove": {
+        "task": {"physics_dt": 0.002},
+        "grasp": {"kind": "weld", "body": "pan", **GRIP, "contact": "patch",
+                  "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.004,
+                  "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
+        "scene": {"stove_half_size": [0.15, 0.15], "clearance": POSITION_MARGIN,
+                  "tray_fraction": 0.2, "tray_clearance": POSITION_MARGIN,
+                  "tray_base_thickness": 0.005, "tray_wall_thickness": 0.008,
+                  "tray_rise": 0.024},
+        "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01,
+                    "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
+        "camera": {"distance": 1.3, "azimuth": 150.0, "elevation": -24.0},
     },
     "pouring": {
         "task": {"physics_dt": 0.002, "release_after": False},
@@ -573,8 +590,9 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
 
 
 def _surface_points(model: mujoco.MjModel, body: str, n: int = 24) -> np.ndarray:
-    """[P, 3] points on the surface of `body`'s cylinder and capsule geoms (rings at their ends,
-    capsules' hemispheres in rings too), in the body's frame."""
+    """[P, 3] points on the surface of `body`'s cylinder, capsule and box geoms (rings at the
+    ends of cylinders and capsules, capsules' hemispheres in rings too; boxes' corners, edge
+    midpoints and face centres), in the body's frame."""
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
     ang = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     ring = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=1)
@@ -584,6 +602,10 @@ def _surface_points(model: mujoco.MjModel, body: str, n: int = 24) -> np.ndarray
         kind = model.geom_type[g]
         if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
             local = [r * ring + [0.0, 0.0, z] for z in (-h, h)]
+        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+            grid = np.stack(np.meshgrid(*[[-1.0, 0.0, 1.0]] * 3, indexing="ij"), -1)
+            grid = grid.reshape(-1, 3)
+            local = [grid[np.abs(grid).max(1) == 1.0] * model.geom_size[g]]
         elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
             local = []
             for phi in np.linspace(0.0, np.pi / 2, 5):
@@ -591,20 +613,22 @@ def _surface_points(model: mujoco.MjModel, body: str, n: int = 24) -> np.ndarray
                     local.append(r * np.cos(phi) * ring
                                  + [0.0, 0.0, side * (h + r * np.sin(phi))])
         else:
-            raise ValueError(f"_surface_points supports cylinders and capsules; {body!r} has "
-                             f"geom type {mujoco.mjtGeom(kind).name}")
+            raise ValueError(f"_surface_points supports cylinders, capsules and boxes; {body!r} "
+                             f"has geom type {mujoco.mjtGeom(kind).name}")
         rot = np.empty(9)
         mujoco.mju_quat2Mat(rot, model.geom_quat[g])
         out.append(np.concatenate(local) @ rot.reshape(3, 3).T + model.geom_pos[g])
     return np.concatenate(out)
 
 
-def _tray_extent(task, grasp: dict[str, Any], top: float, n_samples: int) -> np.ndarray:
+def _tray_extent(task, name: str, body: str, axis: int, grasp: dict[str, Any], top: float,
+                 n_samples: int) -> np.ndarray:
     """[4] the extent (x_lo, x_hi, y_lo, y_hi) in the tray frame (origin under the grasp point
-    at the start, x along the glass's axis) of the glass's surface below `top` (world z) over
-    the first `n_samples` of every demo: where the tray's walls must not be."""
-    model, _ = _task_model("wineglass")
-    pts_local = _surface_points(model, "glass")
+    at the start, x along the held prop's axis `axis`, horizontal) of the surface of `body`
+    (task `name`'s held prop) below `top` (world z) over the first `n_samples` of every demo:
+    where the tray's walls must not be."""
+    model, _ = _task_model(name)
+    pts_local = _surface_points(model, body)
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     g = grasp_points(task.positions[:, :n_samples], task.quaternions[:, :n_samples])
     for n in range(len(g)):
@@ -616,7 +640,7 @@ def _tray_extent(task, grasp: dict[str, Any], top: float, n_samples: int) -> np.
             mujoco.mju_quat2Mat(rot, q)
             rot = rot.reshape(3, 3)
             if origin is None:
-                yaw = np.arctan2(rot[1, 0], rot[0, 0])
+                yaw = np.arctan2(rot[1, axis], rot[0, axis])
                 ex = np.array([np.cos(yaw), np.sin(yaw), 0.0])
                 ey = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
                 origin = g[n, 0]
@@ -628,19 +652,21 @@ def _tray_extent(task, grasp: dict[str, Any], top: float, n_samples: int) -> np.
     return np.array([lo[0], hi[0], lo[1], hi[1]])
 
 
-def _glass_feet(task, grasp: dict[str, Any], t: int = -1) -> tuple[np.ndarray, np.ndarray]:
-    """The glass held at every demo's sample `t`: its lowest point [N] and its foot's centre
-    [N, 3]."""
-    model, data = _task_model("wineglass")
-    foot = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "glass_foot")
-    sites = grasp_points(task.positions[:, t], task.quaternions[:, t])
-    lows, feet = np.empty(len(sites)), np.empty((len(sites), 3))
+def _held_at_end(name: str, body: str, geom: str, task, grasp: dict[str, Any]
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Task `name`'s prop `body` held at every demo's last pose: its lowest point [N] and the
+    centre of its geom `geom` [N, 3]."""
+    model, data = _task_model(name)
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    sites = grasp_points(task.positions[:, -1], task.quaternions[:, -1])
+    lows, centres = np.empty(len(sites)), np.empty((len(sites), 3))
     for n in range(len(sites)):
-        p, q = prop_pose(sites[n], task.quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
-        _place(model, data, "glass", p, q)
-        lows[n] = lowest_point(model, data, "glass")
-        feet[n] = data.geom_xpos[foot]
-    return lows, feet
+        p, q = prop_pose(sites[n], task.quaternions[n, -1], grasp["prop_pos"],
+                         grasp["prop_quat"])
+        _place(model, data, body, p, q)
+        lows[n] = lowest_point(model, data, body)
+        centres[n] = data.geom_xpos[gid]
+    return lows, centres
 
 
 def _derive_glass(task, design, starts) -> dict[str, Any]:
@@ -653,7 +679,8 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
     base = float(d["tray_base_thickness"])
     stand_z = float(start_lows.min() - d["tray_clearance"] - base)
     wall_height = float(start_lows.max() + d["tray_rise"] - (stand_z + base))
-    extent = _tray_extent(task, grasp, stand_z + base + wall_height, n_tray)
+    extent = _tray_extent(task, "wineglass", "glass", 0, grasp, stand_z + base + wall_height,
+                          n_tray)
     c = d["tray_clearance"]
     walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
              float(extent[3] + c)]
@@ -677,7 +704,7 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
     lo, hi = reach.min(0) - margin, reach.max(0) + margin
     mid = centre + (lo[0] + hi[0]) / 2 * ex + (lo[1] + hi[1]) / 2 * ey
     # The shelf: under the feet at the demos' last poses, like the bottle's.
-    lows, feet = _glass_feet(task, grasp)
+    lows, feet = _held_at_end("wineglass", "glass", "glass_foot", task, grasp)
     fcentre = feet[:, :2].mean(0)
     scene = {"table_z": 0.0,
              "stand_top": [float(mid[0]), float(mid[1]), stand_z],
@@ -726,6 +753,63 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
             "max_tray_shift": "design: a tray moved more than this (m) at any step has been "
                               "knocked",
             "max_tray_tilt_deg": "design: a tray tilted more than this at any step has been "
+                                 "knocked"}},
+    }
+
+
+def _derive_pan(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = design["grasp"]
+    n_rack = int(task.positions.shape[1] * d["tray_fraction"])
+    start_lows, _ = _held_prop_lows("pan2stove", "pan", task.positions[:, :n_rack],
+                                    task.quaternions[:, :n_rack], grasp)
+    start_lows = start_lows.min(1)
+    base = float(d["tray_base_thickness"])
+    table_z = float(min(0.0, start_lows.min() - d["tray_clearance"] - base))
+    wall_height = float(start_lows.max() + d["tray_rise"] - (table_z + base))
+    extent = _tray_extent(task, "pan2stove", "pan", 1, grasp, table_z + base + wall_height,
+                          n_rack)
+    c = d["tray_clearance"]
+    walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
+             float(extent[3] + c)]
+    lows, bottoms = _held_at_end("pan2stove", "pan", "pan_bottom", task, grasp)
+    centre = bottoms[:, :2].mean(0)
+    scene = {"table_z": table_z, "tray_walls": walls, "tray_wall_height": wall_height,
+             "tray_base_thickness": base, "tray_wall_thickness": d["tray_wall_thickness"],
+             "stove_top": [float(centre[0]), float(centre[1]),
+                           float(lows.min() - d["clearance"])],
+             "stove_half_size": d["stove_half_size"], "stove_yaw_deg": 0.0,
+             "place_centre": bottoms[:, :2]}
+    top, gaps = _lower_until_clear(task, _doc("pan2stove", design, scene, {}, starts), "pan",
+                                   "stove_top", ("stove_top", "stove_support"), d["clearance"])
+    place = _place_bounds(lows, bottoms, top)
+    return {
+        "scene": scene,
+        "success": place["success"],
+        "derived": {"start_lowest_z": start_lows, "pan_end_lowest_z": lows,
+                    "pan_end_bottom_centre": bottoms, "stove_path_clearance": gaps,
+                    "rack_pan_extent": extent, **place["derived"]},
+        "comments": {"scene": {
+            "table_z": _TABLE_COMMENT,
+            "tray_walls": "the inner faces of the pan rack's walls (rack frame: origin on the "
+                          "table under the grasp point at the start, x along the pan's y axis, "
+                          "horizontal in its plane; x_lo, x_hi, y_lo, y_hi): 1.5 cm clear of "
+                          "where the demos move the pan below the walls' top in their first "
+                          "fifth ([derived] rack_pan_extent)",
+            "tray_wall_height": "the walls' top above the rack's base: 2.4 cm (design) up "
+                                "every demo's pan from its lowest point at the start",
+            "stove_top": "centre of the stove's top: under the mean of the pan's bottom centre "
+                         "at the demos' last poses, 1.5 cm under the lowest point the pan "
+                         "reaches there, and lower if needed until every demo's pan stays "
+                         "1.5 cm clear of the stove on its way ([derived] "
+                         "stove_path_clearance)",
+            "place_centre": "per demo j: where the pan's bottom centre (x, y) is when demo j "
+                            "lets it go (the held pan at demo j's last pose)"},
+            "success": {
+            **place["comments"],
+            "max_rack_shift": "design: a rack moved more than this (m) at any step has been "
+                              "knocked",
+            "max_rack_tilt_deg": "design: a rack tilted more than this at any step has been "
                                  "knocked"}},
     }
 
@@ -798,7 +882,7 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
-           "wineglass": _derive_glass}
+           "wineglass": _derive_glass, "pan2stove": _derive_pan}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {

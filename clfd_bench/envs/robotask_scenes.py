@@ -27,6 +27,9 @@ end state alone:
   `max_release_height` above the shelf and its foot within `place_radius` of where demo j lets
   it go; at the end it stands upright on the shelf (axis within `max_tilt_deg` of vertical,
   bowl up, the foot's bottom within [`min_height`, `max_height`] of the shelf's top).
+- pan2stove (held: the pan, by its handle, welded; RoboTasks9): as the glass, with a pan rack
+  (`max_rack_shift`, `max_rack_tilt_deg`) and a stove: at the end the pan lies flat on the
+  stove (its bottom down, within `max_tilt_deg` of level).
 
 Every scene stands on a table (`[scene] table_z`, the height of its top in the robot base frame;
 the robot stands on it, on a mount when the table is lower than the robot's base). The table top
@@ -537,50 +540,118 @@ class PlateScene(_PlaceScene):
         self.rack_watch.place(state["rack_start"])
 
 
-class GlassScene(_PlaceScene):
-    """A wine glass lying in a drying tray (a base and four walls, one free body) on a stand; a
-    shelf where the demos stand it. Success: see the module docstring (the tray never knocked;
-    released by opening, low and where the demos release it; standing upright on the
-    shelf)."""
+class _TrayPlaceScene(_PlaceScene):
+    """A held prop taken out of a free tray or rack (a base and four walls, one body named
+    `tray`: its geoms `<tray>_base`, `<tray>_wall_{back,front,right,left}`) and laid on a
+    support. The tray's frame: origin on what it stands on (`[scene]
+    stand_top`'s height if the scene has a stand, else the table) under the grasp point at the
+    start, x along the held prop's axis `tray_axis` (its horizontal part); the walls' inner
+    faces at `[scene] tray_walls` (x_lo, x_hi, y_lo, y_hi), their tops `tray_wall_height` above
+    the base. Success needs the tray never knocked (`[success] max_<tray>_shift`,
+    `max_<tray>_tilt_deg`) and what `placed_ok` says of the prop."""
 
-    object_bodies = ("glass", "tray")
-    prop, support, support_half_key = "glass", "shelf", "shelf_half_size"
-    walls = ("tray_wall_back", "tray_wall_front", "tray_wall_right", "tray_wall_left")
+    tray = "tray"
+    #: the prop body's axis (0 x, 1 y, 2 z) the tray's x follows.
+    tray_axis = 0
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
         s = self.scene
-        _support(spec, "shelf", s["shelf_top"], s["shelf_half_size"],
-                 np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
-                 "shelf_support")
-        _support(spec, "stand", s["stand_top"], s["stand_half_size"],
-                 np.radians(s.get("stand_yaw_deg", 0.0)), self.table_z, "stand_top",
-                 "stand_support")
-        # The tray (tray frame: origin on the stand's top under the glass's grasp point at the
-        # start, x along the glass's axis): walls' inner faces at `tray_walls` (x_lo, x_hi,
-        # y_lo, y_hi), their tops `tray_wall_height` above the tray's base.
+        _support(spec, self.support, s[self.support + "_top"], s[self.support_half_key],
+                 np.radians(s.get(self.support + "_yaw_deg", 0.0)), self.table_z,
+                 *self.support_geoms)
+        if "stand_top" in s:
+            _support(spec, "stand", s["stand_top"], s["stand_half_size"],
+                     np.radians(s.get("stand_yaw_deg", 0.0)), self.table_z, "stand_top",
+                     "stand_support")
         t = float(s.get("tray_base_thickness", 0.005))
         w = float(s.get("tray_wall_thickness", 0.008)) / 2
         height = float(s["tray_wall_height"])
         x0, x1, y0, y1 = (float(v) for v in s["tray_walls"])
         cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
         zc, hz = t + height / 2, height / 2
-        for name, pos, size in (
-                ("tray_wall_back", [x0 - w, cy, zc], [w, hy + 2 * w, hz]),
-                ("tray_wall_front", [x1 + w, cy, zc], [w, hy + 2 * w, hz]),
-                ("tray_wall_right", [cx, y0 - w, zc], [hx, w, hz]),
-                ("tray_wall_left", [cx, y1 + w, zc], [hx, w, hz])):
-            g = spec.geom(name)
+        for side, pos, size in (
+                ("back", [x0 - w, cy, zc], [w, hy + 2 * w, hz]),
+                ("front", [x1 + w, cy, zc], [w, hy + 2 * w, hz]),
+                ("right", [cx, y0 - w, zc], [hx, w, hz]),
+                ("left", [cx, y1 + w, zc], [hx, w, hz])):
+            g = spec.geom(f"{self.tray}_wall_{side}")
             g.pos, g.size = pos, size
-        base = spec.geom("tray_base")
+        base = spec.geom(f"{self.tray}_base")
         base.size = [hx + 2 * w, hy + 2 * w, t / 2]
         base.pos = [cx, cy, t / 2]
+
+    @property
+    def support_geoms(self) -> tuple[str, str]:
+        """(board, column) geoms of the support."""
+        raise NotImplementedError
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.tray_id = _id(model, mujoco.mjtObj.mjOBJ_BODY, self.tray)
+        self.tray_watch = KnockWatch(self.tray_id)
+
+    def tray_floor(self) -> float:
+        """World z of what the tray stands on."""
+        return float(self.scene["stand_top"][2]) if "stand_top" in self.scene else self.table_z
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
+        self.place_held_prop(data, grasp)
+        mujoco.mj_kinematics(self.model, data)
+        grasp_pt = data.site_xpos[self.grasp_site]
+        axis = data.xmat[grasp.body_id].reshape(3, 3)[:, self.tray_axis]
+        yaw = float(np.arctan2(axis[1], axis[0]))
+        pos = np.array([grasp_pt[0], grasp_pt[1], self.tray_floor()])
+        set_free_pose(self.model, data, self.tray_id, pos, _yaw_quat(yaw))
+        self.tray_watch.place(pos)
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        super().start_record(data, grasp)
+        self.record.update({f"max_{self.tray}_shift": 0.0, f"max_{self.tray}_tilt_deg": 0.0})
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.tray_watch.track(data, self.record, self.tray)
+
+    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
+        """Whether the prop now lies / stands on the support as the task wants, and why."""
+        raise NotImplementedError
+
+    def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        placed, info = self._placed(data, grasp)
+        resting, more = self.placed_ok(data)
+        shift, tilt = f"max_{self.tray}_shift", f"max_{self.tray}_tilt_deg"
+        rec = self.record
+        tray_ok = bool(rec[shift] <= float(c[shift]) and rec[tilt] <= float(c[tilt]))
+        ok = bool(placed and resting and tray_ok and not grasp.held(data))
+        info.update(more)
+        info.update({shift: float(rec[shift]), tilt: float(rec[tilt]),
+                     f"{self.tray}_in_place": tray_ok})
+        return ok, info
+
+    def scene_state(self) -> dict[str, Any]:
+        state = super().scene_state()
+        state["tray_start"] = self.tray_watch.start.copy()
+        return state
+
+    def restore_scene_state(self, state: dict[str, Any]) -> None:
+        super().restore_scene_state(state)
+        self.tray_watch.place(state["tray_start"])
+
+
+class GlassScene(_TrayPlaceScene):
+    """A wine glass lying in a drying tray on a stand; a shelf where the demos stand it.
+    Success: see the module docstring (the tray never knocked; released by opening, low and
+    where the demos release it; standing upright on the shelf)."""
+
+    object_bodies = ("glass", "tray")
+    prop, support, support_half_key = "glass", "shelf", "shelf_half_size"
+    support_geoms = ("shelf_board", "shelf_support")
 
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
         self.foot = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "glass_foot")
-        self.tray = _id(model, mujoco.mjtObj.mjOBJ_BODY, "tray")
-        self.tray_watch = KnockWatch(self.tray)
         self._foot_half = float(model.geom_size[self.foot][1])
 
     def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
@@ -593,52 +664,47 @@ class GlassScene(_PlaceScene):
         axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
         return data.geom_xpos[self.foot] - self._foot_half * axis
 
-    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
-        self.demo = demo
-        self.place_held_prop(data, grasp)
-        mujoco.mj_kinematics(self.model, data)
-        # The tray lies on the stand under the grasp point, turned with the glass's axis.
-        grasp_pt = data.site_xpos[self.grasp_site]
-        axis = data.xmat[grasp.body_id].reshape(3, 3)[:, 0]
-        yaw = float(np.arctan2(axis[1], axis[0]))
-        pos = np.array([grasp_pt[0], grasp_pt[1], float(self.scene["stand_top"][2])])
-        set_free_pose(self.model, data, self.tray, pos, _yaw_quat(yaw))
-        self.tray_watch.place(pos)
-
-    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
-        super().start_record(data, grasp)
-        self.record.update({"max_tray_shift": 0.0, "max_tray_tilt_deg": 0.0})
-
-    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
-        self.tray_watch.track(data, self.record, "tray")
-
-    def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
-        placed, info = self._placed(data, grasp)
         on_top, height = self._on_support(data, self.foot_bottom(data))
         axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
         tilt = float(np.degrees(np.arccos(np.clip(axis[2], -1.0, 1.0))))  # 180: upside down
         upright = tilt <= float(c["max_tilt_deg"])
         standing = float(c["min_height"]) <= height <= float(c["max_height"])
-        rec = self.record
-        tray_ok = bool(rec["max_tray_shift"] <= float(c["max_tray_shift"])
-                       and rec["max_tray_tilt_deg"] <= float(c["max_tray_tilt_deg"]))
-        ok = bool(placed and on_top and upright and standing and tray_ok
-                  and not grasp.held(data))
-        info.update({"glass_tilt_deg": tilt, "glass_foot_height": height, "on_shelf": on_top,
-                     "max_tray_shift": float(rec["max_tray_shift"]),
-                     "max_tray_tilt_deg": float(rec["max_tray_tilt_deg"]),
-                     "tray_in_place": tray_ok})
-        return ok, info
+        return bool(on_top and upright and standing), {
+            "glass_tilt_deg": tilt, "glass_foot_height": height, "on_shelf": on_top}
 
-    def scene_state(self) -> dict[str, Any]:
-        state = super().scene_state()
-        state["tray_start"] = self.tray_watch.start.copy()
-        return state
 
-    def restore_scene_state(self, state: dict[str, Any]) -> None:
-        super().restore_scene_state(state)
-        self.tray_watch.place(state["tray_start"])
+class PanScene(_TrayPlaceScene):
+    """A pan standing on its rim in a pan rack (a base and four walls, one free body); a stove
+    where the demos set it down. Success: see the module docstring (the rack never knocked;
+    released by opening, low and where the demos release it; lying flat on the stove, its
+    bottom down)."""
+
+    object_bodies = ("pan", "rack")
+    prop, support, support_half_key = "pan", "stove", "stove_half_size"
+    support_geoms = ("stove_top", "stove_support")
+    tray, tray_axis = "rack", 1
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.bottom = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "pan_bottom")
+        self._bottom_half = float(model.geom_size[self.bottom][1])
+
+    def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] the centre of the pan's bottom."""
+        return data.geom_xpos[self.bottom]
+
+    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        z = data.xmat[self.prop_id].reshape(3, 3)[:, 2]  # from the rim to the bottom
+        outer = data.geom_xpos[self.bottom] + self._bottom_half * z
+        on_top, height = self._on_support(data, outer)
+        tilt = float(np.degrees(np.arccos(np.clip(-z[2], -1.0, 1.0))))  # 180: upside down
+        flat = tilt <= float(c["max_tilt_deg"])
+        resting = float(c["min_height"]) <= height <= float(c["max_height"])
+        return bool(on_top and flat and resting), {
+            "pan_tilt_deg": tilt, "pan_bottom_height": height, "on_stove": on_top}
 
 
 class PouringScene(Scene):
@@ -815,6 +881,7 @@ SCENES: dict[str, type[Scene]] = {
     "platestandingtolying": PlateScene,
     "pouring": PouringScene,
     "wineglass": GlassScene,
+    "pan2stove": PanScene,
 }
 
 
