@@ -17,7 +17,8 @@ from clfd_bench.execution.rollout import rollout
 
 ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
         "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
-        "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2"}
+        "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2",
+        "obstaclerotate": "clfd/ObstacleRotate-v2"}
 
 
 @pytest.fixture(scope="module")
@@ -142,3 +143,35 @@ def test_a_pan_turned_only_half_way_is_not_set_down_flat(envs):
     traj[:, 3:] /= np.linalg.norm(traj[:, 3:], axis=1, keepdims=True)
     r = rollout(env, traj, demo=4)
     assert not r.success, r.info
+
+
+def test_a_box_carried_straight_to_the_shelf_runs_into_the_obstacle(envs):
+    for demo in (3, 6):  # (the motion-limit checks are off here: the scene's record says it)
+        r = _run(envs["obstaclerotate"], "shortcut", demo)
+        assert not r.success and r.info["obstacle_touched_by"] is not None, r.info
+
+
+def test_a_box_carried_around_the_obstacle_without_turning_it_fails(envs):
+    """Nothing in the scene forces the demos' turn; the criterion asks for it (the task is to
+    turn the box on the way)."""
+    r = _run(envs["obstaclerotate"], "frozen-orientation", 5)
+    assert not r.success and r.info["obstacle_touched_by"] is None
+    assert r.info["release_reason"] == "opened" and r.info["object_max_turn_deg"] < 1.0
+
+
+def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
+    """Beyond the generic families (clfd_bench.execution.task_variants; every demo:
+    `python eval/own_variants.py`): a right trajectory the demos never show succeeds, the
+    tasks' typical wrong ones fail (limits on, as a real Panda)."""
+    from clfd_bench.execution.task_variants import run_variants
+
+    checks = [("clfd/WineGlass-v2", "lift 8 cm, then a straight line, turning on it", 1),
+              ("clfd/PanToStove-v2", "pull back 12 cm, rise, carry above the stove, descend", 1),
+              ("clfd/PanToStove-v2", "turned half as far", 0),
+              ("clfd/ObstacleRotate-v2", "carried unturned, turned and back over the shelf", 0),
+              ("clfd/ObstacleRotate-v2", "turned as the demo, never back", 0)]
+    for env_id, name, expected in checks:
+        (row,) = run_variants(env_id, [name], demos=[4])
+        assert row.succeeded == expected, row
+    with pytest.raises(KeyError, match="valid"):
+        run_variants("clfd/WineGlass-v2", ["spin it"])

@@ -392,6 +392,73 @@ def test_pan2stove_rack_and_stove_are_what_the_demos_derive():
     assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
 
 
+def test_obstacle_success_needs_the_turn_and_back_no_touch_and_the_box_on_the_shelf(envs):
+    env = envs["obstaclerotate"]
+    env.reset(options={"demo": 2})
+    c = load_task_spec("obstaclerotate")["success"]
+    box = _body(env, "object")
+    top = np.asarray(env.spec_doc["scene"]["shelf_top"])
+    flat = np.array([0.0, 1.0, 0.0, 0.0])  # held hand-down: the box's z down, lying flat
+    on_shelf = top + [0.0, 0.0, 0.045]  # its centre 3 cm above the shelf, the origin 1.5 below
+    rec = env.scene.record
+    need, back = c["min_turn_deg"], c["max_end_turn_deg"]
+    cases = [
+        ("turned, back and put down", need + 5, 2.0, None, True),
+        ("never turned", 0.0, 0.0, None, False),
+        ("turned too little", need - 2, 0.0, None, False),
+        ("turned and left turned", need + 5, back + 5, None, False),
+        ("the obstacle touched", need + 5, 2.0, "link5", False),
+    ]
+    for name, turned, end, touched, expected in cases:
+        _release_record(env, 0.02, 0.005)
+        rec.update({"max_turn_deg": turned, "release_turn_deg": end,
+                    "obstacle_touched_by": touched})
+        set_free_pose(env.model, env.data, box, on_shelf, flat)
+        mujoco.mj_forward(env.model, env.data)
+        ok, info = env.scene.success(env.data, env.grasp)
+        assert ok is expected, (name, info)
+    # Whatever touches the obstacle is recorded by name, once.
+    rec["obstacle_touched_by"] = None
+    x0, x1, y0, y1 = env.spec_doc["scene"]["obstacle_xy"]
+    set_free_pose(env.model, env.data, box, [x0 - 0.099, (y0 + y1) / 2, 0.05],
+                  np.array([1.0, 0.0, 0.0, 0.0]))
+    mujoco.mj_forward(env.model, env.data)
+    env.scene.track(env.data, env.grasp)
+    assert rec["obstacle_touched_by"] == "object"
+
+
+def test_obstacle_turn_is_followed_through_wraparound(envs):
+    """The heading is unwrapped step by step: a turn of 200 deg in the demos' direction in
+    small steps counts as 200, not as -160."""
+    env = envs["obstaclerotate"]
+    env.reset(options={"demo": 0})
+    sign = load_task_spec("obstaclerotate")["success"]["turn_sign"]
+    box = _body(env, "object")
+    pos = env.data.xpos[box].copy()
+    start = env.data.xquat[box].copy()
+    for deg in range(0, 201, 10):
+        q = np.empty(4)
+        mujoco.mju_mulQuat(q, _quat_about([0.0, 0.0, 1.0], np.radians(sign * deg)), start)
+        set_free_pose(env.model, env.data, box, pos, q)
+        mujoco.mj_kinematics(env.model, env.data)
+        env.scene.track(env.data, env.grasp)
+    assert env.scene.record["max_turn_deg"] == pytest.approx(200.0, abs=1e-6)
+
+
+def test_obstaclerotate_obstacle_and_shelf_are_what_the_demos_derive():
+    spec = load_task_spec("obstaclerotate")
+    s, d, c = spec["scene"], spec["derived"], spec["success"]
+    assert min(d["obstacle_clearance"]) >= 0.015 - 5e-4  # the box and the arm clear it
+    x0, x1, y0, y1 = s["obstacle_xy"]
+    assert 0.2 <= x0 < x1 <= 0.43 and -0.24 <= y0 < y1 <= 0.0 and s["obstacle_top"] <= 0.3
+    peak = np.asarray(d["demo_peak_turn_deg"])
+    assert np.all(np.sign(peak) == c["turn_sign"])
+    assert c["min_turn_deg"] == pytest.approx(np.abs(peak).min() - 10.0)
+    assert c["max_end_turn_deg"] == pytest.approx(np.abs(d["demo_end_turn_deg"]).max() + 10.0)
+    assert min(d["shelf_path_clearance"]) >= 0.015 - 5e-4
+    assert all(d["demo_replay_success"])
+
+
 def test_plate_success_fails_once_the_rack_was_knocked(envs):
     env = envs["platestandingtolying"]
     env.reset(options={"demo": 0})

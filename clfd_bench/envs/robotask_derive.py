@@ -51,7 +51,7 @@ from clfd_bench.data import load_dataset
 from clfd_bench.envs.robotask_specs import TASK_DATASETS, load_task_spec
 from clfd_bench.envs.robotasks import RoboTaskEnv
 from clfd_bench.resources import resource_path
-from clfd_bench.sim.robot import robot_model
+from clfd_bench.sim.robot import ROBOT_BODIES, robot_model
 from clfd_bench.sim.scene_fit import (
     fit_hinge,
     grasp_points,
@@ -154,6 +154,17 @@ DESIGN: dict[str, dict[str, Any]] = {
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01,
                     "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
         "camera": {"distance": 1.3, "azimuth": 150.0, "elevation": -24.0},
+    },
+    "obstaclerotate": {
+        "task": {"physics_dt": 0.002},
+        "grasp": {"kind": "weld", "body": "object", **GRIP, "contact": "patch",
+                  "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.03,
+                  "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
+        "scene": {"shelf_half_size": [0.12, 0.12], "clearance": POSITION_MARGIN,
+                  "table_fraction": 0.2, "table_clearance": POSITION_MARGIN,
+                  "obstacle_xy": [0.20, 0.43, -0.24, 0.00], "obstacle_top": 0.30},
+        "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01},
+        "camera": {"distance": 1.35, "azimuth": 160.0, "elevation": -30.0},
     },
     "pouring": {
         "task": {"physics_dt": 0.002, "release_after": False},
@@ -814,6 +825,133 @@ def _derive_pan(task, design, starts) -> dict[str, Any]:
     }
 
 
+def _obstacle_clearance(task, doc: dict[str, Any], every: int = 3
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Each demo replayed (no motion-limit checks) in the scene of `doc` with the obstacle made
+    a ghost (no contacts): the smallest distance (m, negative: into it) between the obstacle and
+    the held object or any robot geom [N], and the point of the obstacle's surface where it is
+    smallest [N, 3]."""
+    env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
+    m, d = env.model, env.data
+    obstacle = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
+    # a ghost: the demos follow their own paths and the distance says how far into it they go
+    m.geom_contype[obstacle] = m.geom_conaffinity[obstacle] = 0
+    robot = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ROBOT_BODIES}
+    prop = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, doc["grasp"]["body"])
+    solid = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+    arm = [g for g in solid if m.geom_bodyid[g] in robot]
+    held = [g for g in solid if m.geom_bodyid[g] == prop]
+    gaps, where = np.full(len(task.positions), np.inf), np.zeros((len(task.positions), 3))
+    fromto = np.zeros(6)
+    for j in range(len(task.positions)):
+        actions = _demo_actions(env, task, j, settle_steps=0)
+        env.reset(options={"demo": j, "horizon": len(actions)})
+        for k, a in enumerate(actions):
+            env.step(a)
+            if k % every:
+                continue
+            for g in arm + held:
+                dist = mujoco.mj_geomDistance(m, d, obstacle, g, 0.1, fromto)
+                if dist < gaps[j]:
+                    gaps[j], where[j] = dist, fromto[:3]
+    env.close()
+    return gaps, where
+
+
+def _derive_obstacle(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = design["grasp"]
+    turns = np.array([_turn_deg(q) for q in task.quaternions])  # [N, T] about world z
+    peak = turns[np.arange(len(turns)), np.abs(turns).argmax(1)]
+    sign = float(np.sign(np.median(peak)))
+    turn = {"turn_sign": sign, "min_turn_deg": float(np.min(sign * peak) - TURN_MARGIN_DEG),
+            "max_end_turn_deg": float(np.abs(turns[:, -1]).max() + TURN_MARGIN_DEG)}
+    table_z, start_lows = _table_below(task, "obstaclerotate", "object", grasp,
+                                       d["table_fraction"], d["table_clearance"])
+    lows, coms = _held_prop_lows("obstaclerotate", "object", task.positions[:, -1],
+                                 task.quaternions[:, -1], grasp)
+    centre = coms[:, :2].mean(0)
+    scene = {"table_z": table_z,
+             "obstacle_xy": list(d["obstacle_xy"]), "obstacle_top": float(d["obstacle_top"]),
+             "shelf_top": [float(centre[0]), float(centre[1]), float(lows.min() - d["clearance"])],
+             "shelf_half_size": d["shelf_half_size"], "shelf_yaw_deg": 0.0,
+             "place_centre": coms[:, :2]}
+    top, shelf_gaps = _lower_until_clear(task, _doc("obstaclerotate", design, scene, turn,
+                                                    starts),
+                                         "object", "shelf_top",
+                                         ("shelf_board", "shelf_support"), d["clearance"])
+    # The obstacle: shrunk (the face nearest to where the demos come closest moved in) until
+    # every demo keeps the box and the arm `clearance` away from it.
+    c = float(d["clearance"])
+    for _ in range(12):
+        gaps, where = _obstacle_clearance(task, _doc("obstaclerotate", design, scene, {
+            **turn, "max_release_height": 1.0, "place_radius": 1.0}, starts))
+        j = int(np.argmin(gaps))
+        deficit = c - float(gaps[j])
+        if deficit <= 5e-4:
+            break
+        x0, x1, y0, y1 = scene["obstacle_xy"]
+        p = where[j]
+        faces = {"x0": abs(p[0] - x0), "x1": abs(p[0] - x1), "y0": abs(p[1] - y0),
+                 "y1": abs(p[1] - y1), "top": abs(p[2] - scene["obstacle_top"])}
+        # a witness on the top's edge counts as the top: something passes over the obstacle
+        face = "top" if faces["top"] < 1e-3 else min(faces, key=faces.get)
+        step = deficit + 1e-3
+        if face == "top":
+            scene["obstacle_top"] = float(scene["obstacle_top"] - step)
+        else:
+            box = dict(zip(("x0", "x1", "y0", "y1"), (x0, x1, y0, y1), strict=True))
+            box[face] += step if face in ("x0", "y0") else -step
+            scene["obstacle_xy"] = [float(box[k]) for k in ("x0", "x1", "y0", "y1")]
+    else:
+        raise RuntimeError("obstaclerotate: the obstacle did not clear the demos in 12 steps")
+    place = _place_bounds(lows, coms, top)
+    return {
+        "scene": scene,
+        "success": {**place["success"], **turn},
+        "derived": {"demo_peak_turn_deg": peak, "demo_end_turn_deg": turns[:, -1],
+                    "start_lowest_z": start_lows, "object_end_lowest_z": lows,
+                    "object_end_com": coms, "shelf_path_clearance": shelf_gaps,
+                    "obstacle_clearance": gaps, **place["derived"]},
+        "comments": {"scene": {
+            "table_z": _TABLE_COMMENT,
+            "obstacle_xy": "the obstacle's footprint (x0, x1, y0, y1). Procedure: the largest "
+                           "box inside the demos' bend that no grasp point comes within 6.5 cm "
+                           "of, x [0.20, 0.43] x y [-0.24, 0.00] (docs/design/robotasks9, "
+                           "derive_sketch.py), its faces then moved in where a demo's box or "
+                           "arm came within 1.5 cm of it ([derived] obstacle_clearance)",
+            "obstacle_top": "the obstacle's top: 0.30 m (design: the demos' paths go around "
+                            "the footprint, never over it, up to that height), lowered where a "
+                            "demo's arm passes over it closer than 1.5 cm",
+            "shelf_top": "centre of the shelf's top: under the mean of the box's centres at "
+                         "the demos' last poses, 1.5 cm under the lowest point the box "
+                         "reaches there, and lower if needed until every demo's box stays "
+                         "1.5 cm clear of the shelf on its way ([derived] "
+                         "shelf_path_clearance)",
+            "place_centre": _PLACE_CENTRE_COMMENT},
+            "success": {**place["comments"],
+                        "turn_sign": "the direction the demos turn the box about the world's "
+                                     "z axis (-1: clockwise seen from above): the sign of the "
+                                     "demos' largest turns ([derived] demo_peak_turn_deg)",
+                        "min_turn_deg": "while held, the box must have turned at least this "
+                                        "far in that direction (its long axis' heading seen "
+                                        "from above). Procedure: the demos' smallest largest "
+                                        "turn less 10 deg",
+                        "max_end_turn_deg": "when let go, the box's heading must be back "
+                                            "within this of its start heading. Procedure: the "
+                                            "demos' largest end turn ([derived] "
+                                            "demo_end_turn_deg) + 10 deg"}},
+    }
+
+
+def _turn_deg(quaternions: np.ndarray) -> np.ndarray:
+    """[T] how far the hand's x axis has turned about the world's z axis since the first of
+    the hand quaternions [T, 4] (its heading seen from above, unwrapped), degrees."""
+    heading = np.array([_hand_x(q)[:2] for q in quaternions])
+    angle = np.unwrap(np.arctan2(heading[:, 1], heading[:, 0]))
+    return np.degrees(angle - angle[0])
+
+
 def _hand_x(quat: np.ndarray) -> np.ndarray:
     """[3] the hand's x axis in the world for a hand quaternion [4] (w, x, y, z)."""
     rot = np.empty(9)
@@ -882,7 +1020,8 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
-           "wineglass": _derive_glass, "pan2stove": _derive_pan}
+           "wineglass": _derive_glass, "pan2stove": _derive_pan,
+           "obstaclerotate": _derive_obstacle}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {
@@ -918,6 +1057,9 @@ def derive_spec(task_name: str, with_starts: bool = True,
     design = DESIGN[task_name]
     if with_starts:
         starts, methods, errors = start_configurations(task.positions, task.quaternions)
+        # as the spec will hold them (10 decimals), so that a run with `with_starts=False`
+        # derives from the very same starts
+        starts = np.array([[round(float(v), 10) for v in row] for row in starts])
     else:
         old = load_task_spec(task_name)
         starts = np.asarray(old["start"]["qpos"], dtype=float)

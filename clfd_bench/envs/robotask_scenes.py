@@ -27,6 +27,15 @@ end state alone:
   `max_release_height` above the shelf and its foot within `place_radius` of where demo j lets
   it go; at the end it stands upright on the shelf (axis within `max_tilt_deg` of vertical,
   bowl up, the foot's bottom within [`min_height`, `max_height`] of the shelf's top).
+- obstaclerotate (held: a box, welded; RoboTasks9): the obstacle is never touched (by the box
+  or the robot) at any step; while held and beside the obstacle (its centre lower than the
+  obstacle's top), the box was turned about the vertical, in the demos' direction
+  (`turn_sign`), by at least `min_turn_deg`, and turned back to within
+  `max_end_turn_deg` of its start heading when let go (the task is to turn it on the way: the
+  demos turn it 58-72 deg and back; nothing in the scene forces the turn); held until the
+  gripper opens, let go low and where demo j lets go (as the bottle); at the end the box lies on
+  the shelf (within `max_tilt_deg` of level, its
+  lowest point within [`min_height`, `max_height`] of the shelf's top).
 - pan2stove (held: the pan, by its handle, welded; RoboTasks9): as the glass, with a pan rack
   (`max_rack_shift`, `max_rack_tilt_deg`) and a stove: at the end the pan lies flat on the
   stove (its bottom down, within `max_tilt_deg` of level).
@@ -707,6 +716,101 @@ class PanScene(_TrayPlaceScene):
             "pan_tilt_deg": tilt, "pan_bottom_height": height, "on_stove": on_top}
 
 
+class ObstacleScene(_PlaceScene):
+    """A box carried around an obstacle (a static block standing in the demos' bend), turned
+    about the vertical on the way, and put down on a shelf. Success: see the module docstring
+    (the obstacle never touched by the box or the arm; the box turned as the demos turn it;
+    released by opening, low and where the demos release it; lying on the shelf)."""
+
+    object_bodies = ("object",)
+    prop, support, support_half_key = "object", "shelf", "shelf_half_size"
+
+    def edit_spec(self, spec: mujoco.MjSpec) -> None:
+        super().edit_spec(spec)
+        s = self.scene
+        _support(spec, "shelf", s["shelf_top"], s["shelf_half_size"],
+                 np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
+                 "shelf_support")
+        x0, x1, y0, y1 = (float(v) for v in s["obstacle_xy"])
+        half_h = (float(s["obstacle_top"]) - self.table_z) / 2
+        spec.body("obstacle").pos = [(x0 + x1) / 2, (y0 + y1) / 2, self.table_z]
+        g = spec.geom("obstacle_box")
+        g.size = [(x1 - x0) / 2, (y1 - y0) / 2, half_h]
+        g.pos = [0.0, 0.0, half_h]
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.obstacle_geom = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
+        self._obstacle_top = float(self.scene["obstacle_top"])
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
+        self.place_held_prop(data, grasp)
+
+    def _heading(self, data: mujoco.MjData) -> float:
+        """Heading (rad) of the box's long axis (its x) seen from above."""
+        x = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
+        return math.atan2(float(x[1]), float(x[0]))
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        super().start_record(data, grasp)
+        self.record.update({"obstacle_touched_by": None, "heading": self._heading(data),
+                            "turn": 0.0, "max_turn_deg": 0.0, "release_turn_deg": None})
+
+    def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        super().on_release(data, grasp)
+        self.record["release_turn_deg"] = math.degrees(self.record["turn"])
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        """How far the held box has turned about the vertical, in the demos' direction (the
+        heading unwrapped step by step), at most while its centre is lower than the obstacle's
+        top (beside it, where the demos turn it); the first body that touches the obstacle
+        (anything but the table it stands on)."""
+        rec = self.record
+        if grasp.held(data):  # the turn counts while the box passes beside the obstacle
+            heading = self._heading(data)
+            step = (heading - rec["heading"] + math.pi) % (2 * math.pi) - math.pi
+            rec["heading"] = heading
+            rec["turn"] += step
+            turned = math.degrees(rec["turn"]) * float(self.success_cfg.get("turn_sign", 1.0))
+            beside = data.xipos[self.prop_id][2] < self._obstacle_top
+            if beside and turned > rec["max_turn_deg"]:
+                rec["max_turn_deg"] = turned
+        if rec["obstacle_touched_by"] is not None or data.ncon == 0:
+            return
+        con = data.contact
+        g1, g2 = con.geom1, con.geom2
+        hit = ((g1 == self.obstacle_geom) | (g2 == self.obstacle_geom)) & (con.dist <= 0.0)
+        for k in np.flatnonzero(hit):
+            other = int(g2[k] if g1[k] == self.obstacle_geom else g1[k])
+            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY,
+                                     self.model.geom_bodyid[other])
+            if name != "world":  # the table plane is a world geom
+                self.record["obstacle_touched_by"] = name
+                return
+
+    def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        placed, info = self._placed(data, grasp)
+        on_top, _ = self._on_support(data, data.xipos[self.prop_id])
+        height = lowest_point(self.model, data, self.prop) - float(self.scene["shelf_top"][2])
+        z = data.xmat[self.prop_id].reshape(3, 3)[:, 2]
+        tilt = _tilt_from_vertical(z)
+        lying = tilt <= float(c["max_tilt_deg"])
+        resting = float(c["min_height"]) <= height <= float(c["max_height"])
+        touched = self.record["obstacle_touched_by"]
+        back = self.record["release_turn_deg"]
+        turned = bool(self.record["max_turn_deg"] >= float(c["min_turn_deg"])
+                      and back is not None and abs(back) <= float(c["max_end_turn_deg"]))
+        ok = bool(placed and on_top and lying and resting and touched is None and turned
+                  and not grasp.held(data))
+        info.update({"object_tilt_deg": tilt, "object_height": height, "on_shelf": on_top,
+                     "obstacle_touched_by": touched,
+                     "object_max_turn_deg": float(self.record["max_turn_deg"]),
+                     "object_release_turn_deg": back})
+        return ok, info
+
+
 class PouringScene(Scene):
     """A cup holding `n_beans` beans (free spheres); a square container where the demos pour.
     Success: see the module docstring (the cup never slips; enough beans in the container,
@@ -882,6 +986,7 @@ SCENES: dict[str, type[Scene]] = {
     "pouring": PouringScene,
     "wineglass": GlassScene,
     "pan2stove": PanScene,
+    "obstaclerotate": ObstacleScene,
 }
 
 

@@ -19,7 +19,7 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 DEFAULT_ENVS = (
     "clfd/HelloWorld-h-v2", "clfd/LASA-Angle-v2", "clfd/BoxOpening-v2",
     "clfd/BottleShelving-v2", "clfd/PlateStacking-v2", "clfd/Pouring-v2",
-    "clfd/WineGlass-v2", "clfd/PanToStove-v2",
+    "clfd/WineGlass-v2", "clfd/PanToStove-v2", "clfd/ObstacleRotate-v2",
 )
 #: Speed targets (x real time) from the issue.
 TARGET_X = 50.0
