@@ -85,6 +85,12 @@ CUP_IN_GRASP = [float(np.sqrt(0.5)), 0.0, -float(np.sqrt(0.5)), 0.0]
 #: mm pads; the load ratio is averaged over 6 control steps (0.1 s) before it breaks the grasp.
 GRIP = {"grip_force": 70.0, "mu": 0.5, "filter_steps": 6}
 
+#: The tray / rack a held prop is taken out of (wineglass, pan2stove): its walls derived from
+#: the first `tray_fraction` of the demos, `tray_clearance` clear of the prop below their top,
+#: which is `tray_rise` up the prop from its lowest start point; base and wall thickness (m).
+TRAY = {"tray_fraction": 0.2, "tray_clearance": POSITION_MARGIN, "tray_base_thickness": 0.005,
+        "tray_wall_thickness": 0.008, "tray_rise": 0.024}
+
 #: Design constants per task (documented choices, not derived from the data). Physics steps
 #: of 2 ms (8 per 60 Hz control step): the arm's stiff position servos, at their torque limits
 #: while a held prop swings, track the demos only as well as the step lets them. Worst hand
@@ -134,10 +140,8 @@ DESIGN: dict[str, dict[str, Any]] = {
                   "contact_radius": 0.0045, "max_slip": 0.03, "max_slip_angle_deg": 30.0,
                   "closed_opening": 0.0045, "prop_pos": [0.0, 0.0, 0.0],
                   "prop_quat": IDENTITY},
-        "scene": {"shelf_half_size": [0.1, 0.1], "clearance": POSITION_MARGIN,
-                  "tray_fraction": 0.2, "tray_clearance": POSITION_MARGIN,
-                  "tray_base_thickness": 0.005, "tray_wall_thickness": 0.008,
-                  "tray_rise": 0.024, "stand_margin": 0.02},
+        "scene": {"shelf_half_size": [0.1, 0.1], "clearance": POSITION_MARGIN, **TRAY,
+                  "stand_margin": 0.02},
         "success": {"max_tilt_deg": 10.0, "min_height": -0.005, "max_height": 0.01,
                     "max_tray_shift": 0.01, "max_tray_tilt_deg": 10.0},
         "camera": {"distance": 1.2, "azimuth": 150.0, "elevation": -22.0},
@@ -147,10 +151,7 @@ DESIGN: dict[str, dict[str, Any]] = {
         "grasp": {"kind": "weld", "body": "pan", **GRIP, "contact": "patch",
                   "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.004,
                   "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
-        "scene": {"stove_half_size": [0.15, 0.15], "clearance": POSITION_MARGIN,
-                  "tray_fraction": 0.2, "tray_clearance": POSITION_MARGIN,
-                  "tray_base_thickness": 0.005, "tray_wall_thickness": 0.008,
-                  "tray_rise": 0.024},
+        "scene": {"stove_half_size": [0.15, 0.15], "clearance": POSITION_MARGIN, **TRAY},
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01,
                     "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
         "camera": {"distance": 1.3, "azimuth": 150.0, "elevation": -24.0},
