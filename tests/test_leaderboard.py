@@ -126,3 +126,17 @@ def test_overrides_name_the_run_and_reach_training(tmp_path):
     assert config.to_dict()["parts"]["position"]["beta"] == pytest.approx(0.0042)
     with pytest.raises(ValueError, match="directory name"):
         RunSpec("helloworld", "hn", "smoke", 0, overrides=[("beta", "1/2")])
+
+
+def test_success_figure_skips_tasks_without_an_env(tmp_path):
+    """RoboTasks9 runs execute only the tasks that have a scene; the others' cells are None
+    (clfd_bench.execution.scoring.sim_fields) and the figure is drawn over the executed ones."""
+    from clfd_bench.leaderboard.aggregate import RunRecord
+    from clfd_bench.leaderboard.plots import plot_success_vs_task
+
+    success = [[[True, False], None, None], [[True, True], None, None],
+               [[False, False], None, [True, True]]]
+    results = {"tasks": ["a", "b", "c"], "success": success}
+    spec = RunSpec("robotasks9", "sg", "smoke", 0, 0, "t", 3, True)
+    path = plot_success_vs_task([RunRecord(spec, "done", results)], ["sg"], tmp_path, "t")
+    assert path is not None and path.stat().st_size > 0

@@ -169,7 +169,9 @@ def plot_success_vs_task(records, methods, out: Path, title: str) -> Path | None
             for res in runs:
                 if i >= len(res["success"]):
                     continue
-                flags = [bool(s) for row in res["success"][i][: i + 1] for s in row]
+                # tasks without an env (RoboTasks9's scoop, ...) are None: not executed
+                flags = [bool(s) for row in res["success"][i][: i + 1] if row is not None
+                         for s in row]
                 if flags:
                     samples[i].append(float(np.mean(flags)))
         _median_band(ax, method.upper(), samples)
