@@ -42,6 +42,7 @@ sit in the `DESIGN` table below and in the task MJCF.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import mujoco
@@ -200,11 +201,14 @@ def _place(model: mujoco.MjModel, data: mujoco.MjData, body: str, pos: np.ndarra
 
 
 def _held_prop_lows(task: str, body: str, positions: np.ndarray, quaternions: np.ndarray,
-                    grasp: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest z [...] and centre of mass [..., 3] of a held prop at hand poses [..., 3|4]
-    (held at `grasp["prop_pos"]`, `grasp["prop_quat"]` in the grasp-site frame)."""
+                    grasp: dict[str, Any], geom: str | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest z [...] and centre of mass [..., 3] (with `geom`: that geom's centre) of a held
+    prop at hand poses [..., 3|4] (held at `grasp["prop_pos"]`, `grasp["prop_quat"]` in the
+    grasp-site frame)."""
     model, data = _task_model(task)
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    gid = None if geom is None else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
     shape = positions.shape[:-1]
     pos = positions.reshape(-1, 3)
     quat = quaternions.reshape(-1, 4)
@@ -215,7 +219,7 @@ def _held_prop_lows(task: str, body: str, positions: np.ndarray, quaternions: np
         p, q = prop_pose(sites[i], quat[i], grasp["prop_pos"], grasp["prop_quat"])
         _place(model, data, body, p, q)
         lows[i] = lowest_point(model, data, body)
-        coms[i] = data.xipos[bid]
+        coms[i] = data.xipos[bid] if gid is None else data.geom_xpos[gid]
     return lows.reshape(shape), coms.reshape(shape + (3,))
 
 
@@ -664,38 +668,33 @@ def _tray_extent(task, name: str, body: str, axis: int, grasp: dict[str, Any], t
     return np.array([lo[0], hi[0], lo[1], hi[1]])
 
 
-def _held_at_end(name: str, body: str, geom: str, task, grasp: dict[str, Any]
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Task `name`'s prop `body` held at every demo's last pose: its lowest point [N] and the
-    centre of its geom `geom` [N, 3]."""
-    model, data = _task_model(name)
-    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
-    sites = grasp_points(task.positions[:, -1], task.quaternions[:, -1])
-    lows, centres = np.empty(len(sites)), np.empty((len(sites), 3))
-    for n in range(len(sites)):
-        p, q = prop_pose(sites[n], task.quaternions[n, -1], grasp["prop_pos"],
-                         grasp["prop_quat"])
-        _place(model, data, body, p, q)
-        lows[n] = lowest_point(model, data, body)
-        centres[n] = data.geom_xpos[gid]
-    return lows, centres
+def _tray_walls(task, name: str, body: str, axis: int, grasp: dict[str, Any],
+                d: dict[str, Any], floor: Callable[[float], float]
+                ) -> tuple[np.ndarray, float, float, np.ndarray, list[float]]:
+    """The tray (or rack) a held prop is taken out of, from the first `d["tray_fraction"]` of
+    the demos: the prop's lowest point per demo there [N]; what the tray stands on (`floor`
+    of the height `d["tray_clearance"]` + the base under the lowest of them); the walls' height
+    above the base (`d["tray_rise"]` up the prop from its highest lowest point); the prop's
+    extent below the walls' top in the tray frame [4] (`_tray_extent`, the prop's axis `axis`)
+    and the walls' inner faces, `d["tray_clearance"]` outside it."""
+    n = int(task.positions.shape[1] * d["tray_fraction"])
+    lows, _ = _held_prop_lows(name, body, task.positions[:, :n], task.quaternions[:, :n], grasp)
+    lows = lows.min(1)
+    base, c = float(d["tray_base_thickness"]), float(d["tray_clearance"])
+    floor_z = floor(float(lows.min() - c - base))
+    wall_height = float(lows.max() + d["tray_rise"] - (floor_z + base))
+    extent = _tray_extent(task, name, body, axis, grasp, floor_z + base + wall_height, n)
+    walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
+             float(extent[3] + c)]
+    return lows, floor_z, wall_height, extent, walls
 
 
 def _derive_glass(task, design, starts) -> dict[str, Any]:
     d = design["scene"]
     grasp = design["grasp"]
-    n_tray = int(task.positions.shape[1] * d["tray_fraction"])
-    start_lows, _ = _held_prop_lows("wineglass", "glass", task.positions[:, :n_tray],
-                                    task.quaternions[:, :n_tray], grasp)
-    start_lows = start_lows.min(1)
     base = float(d["tray_base_thickness"])
-    stand_z = float(start_lows.min() - d["tray_clearance"] - base)
-    wall_height = float(start_lows.max() + d["tray_rise"] - (stand_z + base))
-    extent = _tray_extent(task, "wineglass", "glass", 0, grasp, stand_z + base + wall_height,
-                          n_tray)
-    c = d["tray_clearance"]
-    walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
-             float(extent[3] + c)]
+    start_lows, stand_z, wall_height, extent, walls = _tray_walls(
+        task, "wineglass", "glass", 0, grasp, d, lambda z: z)  # the tray on a stand
     # The stand: under every demo's tray (each lies under its own start grasp point, turned
     # with its glass), `stand_margin` beyond the farthest wall.
     g0 = grasp_points(task.positions[:, 0], task.quaternions[:, 0])
@@ -716,7 +715,8 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
     lo, hi = reach.min(0) - margin, reach.max(0) + margin
     mid = centre + (lo[0] + hi[0]) / 2 * ex + (lo[1] + hi[1]) / 2 * ey
     # The shelf: under the feet at the demos' last poses, like the bottle's.
-    lows, feet = _held_at_end("wineglass", "glass", "glass_foot", task, grasp)
+    lows, feet = _held_prop_lows("wineglass", "glass", task.positions[:, -1],
+                                 task.quaternions[:, -1], grasp, geom="glass_foot")
     fcentre = feet[:, :2].mean(0)
     scene = {"table_z": 0.0,
              "stand_top": [float(mid[0]), float(mid[1]), stand_z],
@@ -772,19 +772,12 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
 def _derive_pan(task, design, starts) -> dict[str, Any]:
     d = design["scene"]
     grasp = design["grasp"]
-    n_rack = int(task.positions.shape[1] * d["tray_fraction"])
-    start_lows, _ = _held_prop_lows("pan2stove", "pan", task.positions[:, :n_rack],
-                                    task.quaternions[:, :n_rack], grasp)
-    start_lows = start_lows.min(1)
     base = float(d["tray_base_thickness"])
-    table_z = float(min(0.0, start_lows.min() - d["tray_clearance"] - base))
-    wall_height = float(start_lows.max() + d["tray_rise"] - (table_z + base))
-    extent = _tray_extent(task, "pan2stove", "pan", 1, grasp, table_z + base + wall_height,
-                          n_rack)
-    c = d["tray_clearance"]
-    walls = [float(extent[0] - c), float(extent[1] + c), float(extent[2] - c),
-             float(extent[3] + c)]
-    lows, bottoms = _held_at_end("pan2stove", "pan", "pan_bottom", task, grasp)
+    # the rack on the table, at most at the robot's base (lower: the robot on a mount)
+    start_lows, table_z, wall_height, extent, walls = _tray_walls(
+        task, "pan2stove", "pan", 1, grasp, d, lambda z: min(0.0, z))
+    lows, bottoms = _held_prop_lows("pan2stove", "pan", task.positions[:, -1],
+                                    task.quaternions[:, -1], grasp, geom="pan_bottom")
     centre = bottoms[:, :2].mean(0)
     scene = {"table_z": table_z, "tray_walls": walls, "tray_wall_height": wall_height,
              "tray_base_thickness": base, "tray_wall_thickness": d["tray_wall_thickness"],

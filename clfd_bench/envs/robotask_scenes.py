@@ -392,11 +392,25 @@ class _PlaceScene(Scene):
     prop = ""
     support = ""
     support_half_key = ""
+    #: (board, column) geoms of the support, sized from `[scene] <support>_top`,
+    #: `support_half_key` and `<support>_yaw_deg`.
+    support_geoms: tuple[str, str] = ("", "")
+
+    def edit_spec(self, spec: mujoco.MjSpec) -> None:
+        super().edit_spec(spec)
+        s = self.scene
+        _support(spec, self.support, s[self.support + "_top"], s[self.support_half_key],
+                 np.radians(s.get(self.support + "_yaw_deg", 0.0)), self.table_z,
+                 *self.support_geoms)
 
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
         self.prop_id = _id(model, mujoco.mjtObj.mjOBJ_BODY, self.prop)
         self.support_id = _id(model, mujoco.mjtObj.mjOBJ_BODY, self.support)
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        self.demo = demo
+        self.place_held_prop(data, grasp)
 
     def prop_centre(self, data: mujoco.MjData) -> np.ndarray:
         """[3] the prop's centre (what `place_radius` is measured on)."""
@@ -437,17 +451,7 @@ class BottleScene(_PlaceScene):
 
     object_bodies = ("bottle",)
     prop, support, support_half_key = "bottle", "shelf", "shelf_half_size"
-
-    def edit_spec(self, spec: mujoco.MjSpec) -> None:
-        super().edit_spec(spec)
-        s = self.scene
-        _support(spec, "shelf", s["shelf_top"], s["shelf_half_size"],
-                 np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
-                 "shelf_support")
-
-    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
-        self.demo = demo
-        self.place_held_prop(data, grasp)
+    support_geoms = ("shelf_board", "shelf_support")
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
@@ -469,14 +473,12 @@ class PlateScene(_PlaceScene):
 
     object_bodies = ("plate", "rack")
     prop, support, support_half_key = "plate", "platform", "platform_half_size"
+    support_geoms = ("platform_top", "platform_support")
     pegs = ("rack_peg1", "rack_peg2", "rack_peg3", "rack_peg4")
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
         s = self.scene
-        _support(spec, "platform", s["platform_top"], s["platform_half_size"],
-                 np.radians(s.get("platform_yaw_deg", 0.0)), self.table_z, "platform_top",
-                 "platform_support")
         # The rack (rack frame: origin on the table under the plate's centre): pegs at
         # `block_offsets`, from the base up to `block_height` above the table; the base spans
         # the pegs' footprint.
@@ -566,9 +568,6 @@ class _TrayPlaceScene(_PlaceScene):
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
         s = self.scene
-        _support(spec, self.support, s[self.support + "_top"], s[self.support_half_key],
-                 np.radians(s.get(self.support + "_yaw_deg", 0.0)), self.table_z,
-                 *self.support_geoms)
         if "stand_top" in s:
             _support(spec, "stand", s["stand_top"], s["stand_half_size"],
                      np.radians(s.get("stand_yaw_deg", 0.0)), self.table_z, "stand_top",
@@ -589,11 +588,6 @@ class _TrayPlaceScene(_PlaceScene):
         base = spec.geom(f"{self.tray}_base")
         base.size = [hx + 2 * w, hy + 2 * w, t / 2]
         base.pos = [cx, cy, t / 2]
-
-    @property
-    def support_geoms(self) -> tuple[str, str]:
-        """(board, column) geoms of the support."""
-        raise NotImplementedError
 
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
@@ -724,13 +718,11 @@ class ObstacleScene(_PlaceScene):
 
     object_bodies = ("object",)
     prop, support, support_half_key = "object", "shelf", "shelf_half_size"
+    support_geoms = ("shelf_board", "shelf_support")
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
         super().edit_spec(spec)
         s = self.scene
-        _support(spec, "shelf", s["shelf_top"], s["shelf_half_size"],
-                 np.radians(s.get("shelf_yaw_deg", 0.0)), self.table_z, "shelf_board",
-                 "shelf_support")
         x0, x1, y0, y1 = (float(v) for v in s["obstacle_xy"])
         half_h = (float(s["obstacle_top"]) - self.table_z) / 2
         spec.body("obstacle").pos = [(x0 + x1) / 2, (y0 + y1) / 2, self.table_z]
@@ -742,10 +734,7 @@ class ObstacleScene(_PlaceScene):
         super().bind(model)
         self.obstacle_geom = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
         self._obstacle_top = float(self.scene["obstacle_top"])
-
-    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
-        self.demo = demo
-        self.place_held_prop(data, grasp)
+        self._turn_sign = float(self.success_cfg.get("turn_sign", 1.0))
 
     def _heading(self, data: mujoco.MjData) -> float:
         """Heading (rad) of the box's long axis (its x) seen from above."""
@@ -772,7 +761,7 @@ class ObstacleScene(_PlaceScene):
             step = (heading - rec["heading"] + math.pi) % (2 * math.pi) - math.pi
             rec["heading"] = heading
             rec["turn"] += step
-            turned = math.degrees(rec["turn"]) * float(self.success_cfg.get("turn_sign", 1.0))
+            turned = math.degrees(rec["turn"]) * self._turn_sign
             beside = data.xipos[self.prop_id][2] < self._obstacle_top
             if beside and turned > rec["max_turn_deg"]:
                 rec["max_turn_deg"] = turned
