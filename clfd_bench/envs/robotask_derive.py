@@ -168,6 +168,24 @@ DESIGN: dict[str, dict[str, Any]] = {
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01},
         "camera": {"distance": 1.35, "azimuth": 160.0, "elevation": -30.0},
     },
+    "scoop": {
+        "task": {"physics_dt": 0.002, "release_after": False},
+        "grasp": {"kind": "weld", "body": "scoop", **GRIP, "contact": "line_x",
+                  "contact_radius": 0.008, "max_slip": 0.03, "max_slip_angle_deg": 30.0,
+                  "closed_opening": 0.008, "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": IDENTITY},
+        "scene": {"n_beans": 6, "bean_radius": 0.012, "bean_mass": 0.002, "grain_spacing": 0.01,
+                  # the bowl of tasks/scoop.xml in the scoop's frame: inside its walls and
+                  # floor, from the opening (low z) up; and its outside
+                  "bowl_cavity": [[0.214, -0.031, -0.02], [0.286, 0.031, 0.016]],
+                  "bowl_outer": [[0.21, -0.035, -0.02], [0.29, 0.035, 0.02]],
+                  "dip": 0.03, "rim_above": 0.0, "clearance": POSITION_MARGIN,
+                  "bin_wall_thickness": 0.008, "jitter_factor": 1.3},
+        "solver": {"solver": "newton", "iterations": 20, "ls_iterations": 10,
+                   "tolerance": 1e-8, "cone": "pyramidal"},
+        "success": {},
+        "camera": {"distance": 1.1, "azimuth": 145.0, "elevation": -26.0},
+    },
     "pouring": {
         "task": {"physics_dt": 0.002, "release_after": False},
         "grasp": {"kind": "weld", "body": "cup", **GRIP, "contact": "line_x",
@@ -819,37 +837,38 @@ def _derive_pan(task, design, starts) -> dict[str, Any]:
     }
 
 
-def _obstacle_clearance(task, doc: dict[str, Any], every: int = 3
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Each demo replayed (no motion-limit checks) in the scene of `doc` with the obstacle made
-    a ghost (no contacts): the smallest distance (m, negative: into it) between the obstacle and
-    the held object or any robot geom [N], and the point of the obstacle's surface where it is
-    smallest [N, 3]."""
+def _ghost_clearance(task, doc: dict[str, Any], geoms: tuple[str, ...], every: int = 3
+                     ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Each demo replayed (no motion-limit checks) in the scene of `doc` with its geoms `geoms`
+    made ghosts (no contacts): the smallest distance (m, negative: into it) between any of them
+    and the held prop or any robot geom [N], the point of the ghost's surface where it is
+    smallest [N, 3], and which ghost that is [N]."""
     env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
     m, d = env.model, env.data
-    obstacle = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
-    # a ghost: the demos follow their own paths and the distance says how far into it they go
-    m.geom_contype[obstacle] = m.geom_conaffinity[obstacle] = 0
+    ghosts = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, g) for g in geoms]
+    for g in ghosts:  # the demos follow their own paths; the distance says how far in they go
+        m.geom_contype[g] = m.geom_conaffinity[g] = 0
     robot = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ROBOT_BODIES}
     prop = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, doc["grasp"]["body"])
     solid = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
-    arm = [g for g in solid if m.geom_bodyid[g] in robot]
-    held = [g for g in solid if m.geom_bodyid[g] == prop]
-    gaps, where = np.full(len(task.positions), np.inf), np.zeros((len(task.positions), 3))
+    movers = [g for g in solid if m.geom_bodyid[g] in robot or m.geom_bodyid[g] == prop]
+    n = len(task.positions)
+    gaps, where, which = np.full(n, np.inf), np.zeros((n, 3)), [geoms[0]] * n
     fromto = np.zeros(6)
-    for j in range(len(task.positions)):
+    for j in range(n):
         actions = _demo_actions(env, task, j, settle_steps=0)
         env.reset(options={"demo": j, "horizon": len(actions)})
         for k, a in enumerate(actions):
             env.step(a)
             if k % every:
                 continue
-            for g in arm + held:
-                dist = mujoco.mj_geomDistance(m, d, obstacle, g, 0.1, fromto)
-                if dist < gaps[j]:
-                    gaps[j], where[j] = dist, fromto[:3]
+            for ghost, name in zip(ghosts, geoms, strict=True):
+                for g in movers:
+                    dist = mujoco.mj_geomDistance(m, d, ghost, g, 0.1, fromto)
+                    if dist < gaps[j]:
+                        gaps[j], where[j], which[j] = dist, fromto[:3], name
     env.close()
-    return gaps, where
+    return gaps, where, which
 
 
 def _derive_obstacle(task, design, starts) -> dict[str, Any]:
@@ -878,8 +897,8 @@ def _derive_obstacle(task, design, starts) -> dict[str, Any]:
     # every demo keeps the box and the arm `clearance` away from it.
     c = float(d["clearance"])
     for _ in range(12):
-        gaps, where = _obstacle_clearance(task, _doc("obstaclerotate", design, scene, {
-            **turn, "max_release_height": 1.0, "place_radius": 1.0}, starts))
+        gaps, where, _ = _ghost_clearance(task, _doc("obstaclerotate", design, scene, {
+            **turn, "max_release_height": 1.0, "place_radius": 1.0}, starts), ("obstacle_box",))
         j = int(np.argmin(gaps))
         deficit = c - float(gaps[j])
         if deficit <= 5e-4:
@@ -936,6 +955,159 @@ def _derive_obstacle(task, design, starts) -> dict[str, Any]:
                                             "demos' largest end turn ([derived] "
                                             "demo_end_turn_deg) + 10 deg"}},
     }
+
+
+def _extent_below(name: str, body: str, positions: np.ndarray, quaternions: np.ndarray,
+                  grasp: dict[str, Any], top: float, every: int = 2) -> np.ndarray:
+    """[4] the world extent (x_lo, x_hi, y_lo, y_hi) of the surface of `body` (task `name`'s
+    held prop) below `top` (world z) at the hand poses [N, T, 3|4] (every `every`-th sample);
+    NaN where nothing is below."""
+    model, _ = _task_model(name)
+    pts_local = _surface_points(model, body)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    g = grasp_points(positions, quaternions)
+    rot = np.empty(9)
+    for n in range(len(g)):
+        for t in range(0, g.shape[1], every):
+            p, q = prop_pose(g[n, t], quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
+            mujoco.mju_quat2Mat(rot, q)
+            pts = p + pts_local @ rot.reshape(3, 3).T
+            near = pts[pts[:, 2] <= top]
+            if len(near):
+                lo, hi = np.minimum(lo, near[:, :2].min(0)), np.maximum(hi, near[:, :2].max(0))
+    out = np.array([lo[0], hi[0], lo[1], hi[1]])
+    return np.where(np.isfinite(out), out, np.nan)
+
+
+def _prop_points_lowest(positions: np.ndarray, quaternions: np.ndarray, grasp: dict[str, Any],
+                        local: np.ndarray) -> np.ndarray:
+    """[N] the lowest world z that any of the held prop's points `local` [P, 3] (prop frame)
+    reaches along each demo (hand poses [N, T, 3|4])."""
+    g = grasp_points(positions, quaternions)
+    out = np.full(len(g), np.inf)
+    rot = np.empty(9)
+    for n in range(len(g)):
+        for t in range(g.shape[1]):
+            p, q = prop_pose(g[n, t], quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
+            mujoco.mju_quat2Mat(rot, q)
+            out[n] = min(out[n], float((p + local @ rot.reshape(3, 3).T)[:, 2].min()))
+    return out
+
+
+_BIN_GEOMS = ("bin_floor", "bin_wall_back", "bin_wall_front", "bin_wall_right", "bin_wall_left")
+
+
+def _derive_scoop(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = design["grasp"]
+    c = float(d["clearance"])
+    lows, _ = _held_prop_lows("scoop", "scoop", task.positions, task.quaternions, grasp)
+    dips = lows.min(1)  # the scoop's lowest point per demo
+    # the bowl's lip (the edge of its opening) at its lowest per demo: beans flow in over it
+    lo, hi = np.asarray(d["bowl_cavity"], dtype=float)
+    lip = np.array([[x, y, lo[2]] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
+    lips = _prop_points_lowest(task.positions, task.quaternions, grasp, lip)
+    surface = float(lips.max() + d["dip"])
+    rim = surface + float(d["rim_above"])
+    floor = float(dips.min() - c)
+    ext = _extent_below("scoop", "scoop", task.positions, task.quaternions, grasp, rim)
+    walls = [float(ext[0] - c), float(ext[1] + c), float(ext[2] - c), float(ext[3] + c)]
+    scene = {"bin_walls": walls, "bin_floor_z": floor, "bin_rim_z": rim, "surface_z": surface,
+             **{k: d[k] for k in ("n_beans", "bean_radius", "bean_mass", "grain_spacing",
+                                  "bowl_cavity",
+                                  "bowl_outer", "bin_wall_thickness")}}
+    loose = {"min_beans": 0, "max_spilled": 10 ** 6}
+    # The bin's walls and floor moved out until every demo's scoop and arm stay `clearance`
+    # away from them (replayed, the bin a ghost): the hand may come down lower than the scoop.
+    for _ in range(12):
+        gaps, where, which = _ghost_clearance(task, _doc("scoop", design, scene, loose, starts),
+                                              _BIN_GEOMS)
+        j = int(np.argmin(gaps))
+        deficit = c - float(gaps[j])
+        if deficit <= 5e-4:
+            break
+        step = deficit + 1e-3
+        if which[j] == "bin_floor":
+            scene["bin_floor_z"] = float(scene["bin_floor_z"] - step)
+        else:  # against a wall, or over its top: that wall goes out
+            k = _BIN_GEOMS.index(which[j]) - 1
+            scene["bin_walls"][k] += -step if k in (0, 2) else step
+    else:
+        raise RuntimeError("scoop: the bin did not clear the demos in 12 steps")
+    doc = _doc("scoop", design, scene, loose, starts)
+    infos, ends = _scoop_replays(task, doc)
+    beans = np.array([i["beans_in_scoop"] for i in infos])
+    spilled = np.array([i["beans_spilled"] for i in infos])
+    scooped = np.array([i["beans_scooped"] for i in infos])
+    scene["end_centre"] = ends
+    jitter = np.array([np.linalg.norm(_scoop_replays(task, doc, f)[1] - ends, axis=1)
+                       for f in (2.0, 1.0 / 1.5)])
+    radius = max(PLACE_RADIUS, d["jitter_factor"] * float(jitter.max()))
+    return {
+        "scene": scene,
+        "success": {"min_beans": int(max(1, beans.min() - 1)),
+                    "max_spilled": int(spilled.max() + 1), "end_radius": radius},
+        "derived": {"scoop_lowest_z": dips, "lip_lowest_z": lips, "bin_clearance": gaps,
+                    "beans_scooped_demos": scooped, "beans_in_scoop_demos": beans,
+                    "beans_spilled_demos": spilled, "end_jitter_slower": jitter[0],
+                    "end_jitter_faster": jitter[1]},
+        "comments": {
+            "scene": {
+                "bin_walls": "the bin's inner faces (x0, x1, y0, y1). Procedure: the extent of "
+                             "the scoop's surface below the rim over the demos, 1.5 cm out, then "
+                             "moved out where a demo's scoop or arm came within 1.5 cm of a wall "
+                             "(the demos replayed with the bin a ghost; [derived] "
+                             "bin_clearance)",
+                "bin_floor_z": "the bin's inner floor: 1.5 cm under the lowest point the scoop "
+                               "reaches in the demos ([derived] scoop_lowest_z)",
+                "surface_z": "the level of the beans: `dip` (design, 3 cm) over the highest of "
+                             "the demos' lowest lip points (the edge of the bowl's opening; "
+                             "[derived] lip_lowest_z), so that in every demo the beans flow "
+                             "into the bowl over its lip",
+
+                "n_beans": "design: the pool of beans the scoop can hold at once (free "
+                           "spheres; the bin's contents are grain sites, see "
+                           "clfd_bench.envs.robotask_scenes.ScoopScene)",
+                "end_centre": "per demo j: where the bowl's centre is (world, m) at the end of "
+                              "demo j replayed (+ 1 s holding)"},
+            "success": {
+                "min_beans": "beans that must be in the scoop at the end (after 1 s holding "
+                             "still). Procedure: the demos replayed ([derived] "
+                             "beans_in_scoop_demos): one fewer than the worst demo, at least 1",
+                "max_spilled": "beans that may land outside the bin (table, stand, rim). "
+                               "Procedure: the demos replayed ([derived] beans_spilled_demos): "
+                               "one more than the worst demo",
+                "end_radius": "the bowl must end within this distance (m) of where demo j "
+                              "ends it ([scene] end_centre). Procedure: the 2 cm place radius "
+                              "(1.5 cm margin + 5 mm), or 1.3 x the largest shift the demos "
+                              "replayed 2x slower and 1.5x faster show ([derived] "
+                              "end_jitter_*) if that is larger"},
+        },
+    }
+
+
+def _scoop_replays(task, doc: dict[str, Any], time_scale: float = 1.0
+                   ) -> tuple[list[dict[str, Any]], np.ndarray]:
+    """Each demo replayed (+ 1 s holding, no motion-limit checks) in the scene of `doc`, the
+    demos' durations scaled by `time_scale`: the env's final infos and the scoop's bowl centre
+    (world) at the end [N, 3]."""
+    from clfd_bench.data.resample import resample
+
+    env = RoboTaskEnv("scoop", spec=doc, limits=None)
+    infos, out = [], np.zeros((len(task.positions), 3))
+    for j in range(len(task.positions)):
+        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
+        if time_scale != 1.0:
+            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
+        actions = env.trajectory_to_actions(traj)
+        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        env.reset(options={"demo": j, "horizon": len(actions)})
+        for a in actions:
+            env.step(a)
+        infos.append(env.evaluate())
+        out[j] = env.scene.bowl_centre(env.data)
+    env.close()
+    return infos, out
 
 
 def _turn_deg(quaternions: np.ndarray) -> np.ndarray:
@@ -1015,7 +1187,7 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
            "wineglass": _derive_glass, "pan2stove": _derive_pan,
-           "obstaclerotate": _derive_obstacle}
+           "obstaclerotate": _derive_obstacle, "scoop": _derive_scoop}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {
