@@ -168,6 +168,16 @@ DESIGN: dict[str, dict[str, Any]] = {
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01},
         "camera": {"distance": 1.35, "azimuth": 160.0, "elevation": -30.0},
     },
+    "matfolding": {
+        "task": {"physics_dt": 0.002},
+        "grasp": {"kind": "weld", "body": "mat_pinch", **GRIP, "contact": "patch",
+                  "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.0015,
+                  "exclude": ["mat12", "mat11", "mat10"], "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": IDENTITY},
+        "scene": {"table_clearance": POSITION_MARGIN, "table_xy": [-0.3, 0.9, -1.0, 0.6]},
+        "success": {"max_layer_height": 0.02},
+        "camera": {"distance": 1.3, "azimuth": 60.0, "elevation": -30.0},
+    },
     "pouring": {
         "task": {"physics_dt": 0.002, "release_after": False},
         "grasp": {"kind": "weld", "body": "cup", **GRIP, "contact": "line_x",
@@ -819,22 +829,21 @@ def _derive_pan(task, design, starts) -> dict[str, Any]:
     }
 
 
-def _obstacle_clearance(task, doc: dict[str, Any], every: int = 3
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Each demo replayed (no motion-limit checks) in the scene of `doc` with the obstacle made
-    a ghost (no contacts): the smallest distance (m, negative: into it) between the obstacle and
-    the held object or any robot geom [N], and the point of the obstacle's surface where it is
-    smallest [N, 3]."""
+def _ghost_clearance(task, doc: dict[str, Any], geom: str, every: int = 3
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Each demo replayed (no motion-limit checks) in the scene of `doc` with its geom `geom`
+    made a ghost (no contacts): the smallest distance (m, negative: into it) between that geom
+    and the held prop or any robot geom [N], and the point of the geom where it is smallest
+    [N, 3]."""
     env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
     m, d = env.model, env.data
-    obstacle = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
+    ghost = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, geom)
     # a ghost: the demos follow their own paths and the distance says how far into it they go
-    m.geom_contype[obstacle] = m.geom_conaffinity[obstacle] = 0
+    m.geom_contype[ghost] = m.geom_conaffinity[ghost] = 0
     robot = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in ROBOT_BODIES}
     prop = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, doc["grasp"]["body"])
     solid = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
-    arm = [g for g in solid if m.geom_bodyid[g] in robot]
-    held = [g for g in solid if m.geom_bodyid[g] == prop]
+    movers = [g for g in solid if m.geom_bodyid[g] in robot or m.geom_bodyid[g] == prop]
     gaps, where = np.full(len(task.positions), np.inf), np.zeros((len(task.positions), 3))
     fromto = np.zeros(6)
     for j in range(len(task.positions)):
@@ -844,8 +853,8 @@ def _obstacle_clearance(task, doc: dict[str, Any], every: int = 3
             env.step(a)
             if k % every:
                 continue
-            for g in arm + held:
-                dist = mujoco.mj_geomDistance(m, d, obstacle, g, 0.1, fromto)
+            for g in movers:
+                dist = mujoco.mj_geomDistance(m, d, ghost, g, 0.1, fromto)
                 if dist < gaps[j]:
                     gaps[j], where[j] = dist, fromto[:3]
     env.close()
@@ -878,8 +887,8 @@ def _derive_obstacle(task, design, starts) -> dict[str, Any]:
     # every demo keeps the box and the arm `clearance` away from it.
     c = float(d["clearance"])
     for _ in range(12):
-        gaps, where = _obstacle_clearance(task, _doc("obstaclerotate", design, scene, {
-            **turn, "max_release_height": 1.0, "place_radius": 1.0}, starts))
+        gaps, where = _ghost_clearance(task, _doc("obstaclerotate", design, scene, {
+            **turn, "max_release_height": 1.0, "place_radius": 1.0}, starts), "obstacle_box")
         j = int(np.argmin(gaps))
         deficit = c - float(gaps[j])
         if deficit <= 5e-4:
@@ -944,6 +953,89 @@ def _turn_deg(quaternions: np.ndarray) -> np.ndarray:
     heading = np.array([_hand_x(q)[:2] for q in quaternions])
     angle = np.unwrap(np.arctan2(heading[:, 1], heading[:, 0]))
     return np.degrees(angle - angle[0])
+
+
+def _mat_replays(task, doc: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, list[dict]]:
+    """Each demo replayed (+ 1 s settling, no motion-limit checks) in the scene of `doc`: the
+    largest turn of the pinched edge between the pads [N] (rad), where the near edge's middle
+    is in the far plate's frame when the gripper lets it go [N, 3] (`MatScene.fold_vector`;
+    NaN: never let go), and the env's final infos."""
+    env = RoboTaskEnv("matfolding", spec=doc, limits=None)
+    n = len(task.positions)
+    turns, ends, infos = np.zeros(n), np.zeros((n, 3)), []
+    for j in range(len(task.positions)):
+        actions = _demo_actions(env, task, j)
+        env.reset(options={"demo": j, "horizon": len(actions)})
+        for a in actions:
+            env.step(a)
+            if env.grasp.held(env.data):
+                turns[j] = max(turns[j], env.grasp.slips(env.data).get("pinch_turn", 0.0))
+        rel = env.scene.record["release_vector"]
+        ends[j] = np.nan if rel is None else rel
+        infos.append(env.evaluate())
+    env.close()
+    return turns, ends, infos
+
+
+def _derive_mat(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = dict(design["grasp"])
+    g0 = grasp_points(task.positions[:, 0], task.quaternions[:, 0])
+    table_z = float(min(0.0, g0[:, 2].min() - d["table_clearance"]))
+    scene = {"table_z": table_z, "table_xy": d["table_xy"], "release_vector": [[0.0, 0.0, 0.0]]}
+    # the pinch's turn with no bound, and where each demo lays the edge
+    free = {**grasp, "slip_joints": [["pinch_turn", 0.0, float(np.pi)]]}
+    provisional = {"task": {"name": "matfolding", **design["task"]}, "grasp": free,
+                   "scene": scene, "success": {**design["success"], "fold_radius": 1.0,
+                                               "max_release_height": 1.0},
+                   "start": {"qpos": starts}}
+    # lower the table until the hand clears it by 1.5 cm in every demo (the hand is tilted
+    # 35-60 deg at the end: it comes lower than the fingertips)
+    hand_gaps, _ = _ghost_clearance(task, provisional, "floor")
+    deficit = float(d["table_clearance"] - hand_gaps.min())
+    if deficit > 0:
+        scene["table_z"] = table_z = table_z - deficit
+    turns, ends, infos = _mat_replays(task, provisional)
+    if not np.isfinite(ends).all():
+        raise RuntimeError("matfolding: a demo replay never let the mat go")
+    bound = float(np.radians(np.degrees(turns.max()) + TURN_MARGIN_DEG))
+    scene["release_vector"] = ends
+    return {
+        "scene": scene,
+        "grasp": {"slip_joints": [["pinch_turn", 0.0, bound]]},
+        "success": {"fold_radius": PLACE_RADIUS,
+                    "max_release_height": float(ends[:, 2].max() + POSITION_MARGIN)},
+        "derived": {"start_grasp_z": g0[:, 2], "hand_table_gap": hand_gaps,
+                    "pinch_turn_max_deg": np.degrees(turns),
+                    "root_shift_max": [i["max_root_shift"] for i in infos]},
+        "comments": {
+            "scene": {
+                "table_z": "the table top: the lowest grasp point at the demos' starts "
+                           "([derived] start_grasp_z) less 1.5 cm, lowered until the hand "
+                           "clears it by 1.5 cm in every demo ([derived] hand_table_gap, at "
+                           "the table before lowering); the mat lies on it and its last strips "
+                           "ramp up to each demo's start grasp",
+                "release_vector": "per demo j: where the middle of the mat's near edge is "
+                                  "in the far plate's frame (x along the edge, y towards the "
+                                  "far edge, z up; origin at the far edge's middle) when the "
+                                  "gripper lets it go in demo j's replay"},
+            "grasp": {"slip_joints": (
+                "how far the pinched edge may turn between the pads (the ball joint "
+                "pinch_turn's angle since the grasp, rad) before it slips out. Procedure: the "
+                "demos replayed with no bound ([derived] pinch_turn_max_deg), max + 10 deg")},
+            "success": {
+                "fold_radius": "when the gripper opens, the near edge's middle must be "
+                               "within this horizontal distance of where demo j lets it go, "
+                               "in the far plate's frame ([scene] release_vector): 1.5 cm of "
+                               "position margin + 5 mm; at the end it must lie over the far "
+                               "half (at most this beyond its far edge)",
+                "max_release_height": "and at most this high above the far plate. "
+                                      "Procedure: the demos' highest ([scene] release_vector "
+                                      "z) + 1.5 cm",
+                "max_layer_height": "design: the far plate lies at most this high above "
+                                    "the table (its edge), the near half's strips at most "
+                                    "twice as high (on top of it)"}},
+    }
 
 
 def _hand_x(quat: np.ndarray) -> np.ndarray:
@@ -1015,7 +1107,7 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
            "wineglass": _derive_glass, "pan2stove": _derive_pan,
-           "obstaclerotate": _derive_obstacle}
+           "obstaclerotate": _derive_obstacle, "matfolding": _derive_mat}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {

@@ -800,6 +800,130 @@ class ObstacleScene(_PlaceScene):
         return ok, info
 
 
+class MatScene(Scene):
+    """A mat (a chain of rigid strips hinged about x, `tasks/matfolding.xml`) lying on the table,
+    pinched at its near edge (`mat_pinch`, welded to the hand; the edge turns between the pads on
+    a ball joint, as far as the grasp's slip bound allows) and folded in half. Success: see the
+    module docstring (held until the gripper opens, the near edge let go over the far half where
+    demo j lets it go, low; at the end the near edge over the far half, the mat in two
+    layers). Where the mat ends in the room is not
+    judged: the demos themselves drag it (lifting the edge 8 cm while moving it 1 cm pulls the
+    mat towards it), by 10-14 cm and 9-23 deg in the replays (`max_root_shift` reports it)."""
+
+    object_bodies = ("mat0", "mat_pinch")
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        super().bind(model)
+        self.strips = []
+        k = 0
+        while mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"mat{k}") >= 0:
+            self.strips.append(_id(model, mujoco.mjtObj.mjOBJ_BODY, f"mat{k}"))
+            k += 1
+        if len(self.strips) < 4:
+            raise ValueError("the matfolding scene needs a plate mat0 and a chain of at least "
+                             "3 strips mat1..")
+        self.root = self.strips[0]
+        self.pinch = _id(model, mujoco.mjtObj.mjOBJ_BODY, "mat_pinch")
+        self.hinges = [int(model.jnt_qposadr[_id(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                                  f"mat_hinge{k}")])
+                       for k in range(1, len(self.strips))]
+        self.turn_adr = int(model.jnt_qposadr[_id(model, mujoco.mjtObj.mjOBJ_JOINT,
+                                                   "pinch_turn")])
+        plate = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "mat0_geom")
+        strip = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "mat1_geom")
+        self.half_length = 2.0 * float(model.geom_size[plate][1])  # the far half, along y
+        self.width = 2.0 * float(model.geom_size[strip][1])  # a strip of the near half
+        self.half_thick = float(model.geom_size[plate][2])
+        self.root_start = np.zeros(3)
+
+    def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
+        """The mat flat on the table along +y from its near edge, whose middle is at the grasp
+        point; where the grasp point is above the mat, the last one or two strips ramp up to
+        it."""
+        self.demo = demo
+        mujoco.mj_kinematics(self.model, data)
+        g = data.site_xpos[self.grasp_site].copy()
+        n, w = len(self.strips) - 1, self.width  # strips of the near half
+        rise = float(g[2]) - (self.table_z + self.half_thick)
+        ramp = max(1, math.ceil(rise / (0.9 * w)))
+        if ramp > n // 2:
+            raise ValueError(f"demo {demo}'s grasp point is {rise:.3f} m above the mat: the "
+                             "matfolding scene does not fit this demo; regenerate "
+                             "tasks/matfolding.toml")
+        theta = math.asin(max(0.0, rise) / (ramp * w))
+        for adr in self.hinges:
+            data.qpos[adr] = 0.0
+        data.qpos[self.hinges[n - ramp]] = -theta  # the hinge of strip n - ramp + 1
+        # far edge to near edge along y
+        reach = self.half_length + (n - ramp) * w + ramp * w * math.cos(theta)
+        root = np.array([g[0], g[1] + reach, self.table_z + self.half_thick])
+        set_free_pose(self.model, data, self.root, root, np.array([1.0, 0.0, 0.0, 0.0]))
+        self.root_start = root
+        mujoco.mj_kinematics(self.model, data)
+        # the pinch takes the hand's orientation (the weld holds it there)
+        turn, inv = np.empty(4), np.empty(4)
+        mujoco.mju_negQuat(inv, data.xquat[self.strips[-1]])
+        mujoco.mju_mulQuat(turn, inv, data.xquat[grasp.hand_id])
+        data.qpos[self.turn_adr:self.turn_adr + 4] = turn / np.linalg.norm(turn)
+
+    def near_edge(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] the middle of the mat's near (pinched) edge."""
+        return data.xpos[self.pinch]
+
+    def fold_vector(self, data: mujoco.MjData) -> np.ndarray:
+        """[3] where the near edge's middle is in the far plate's frame (x along the edge, y
+        towards the far edge, z up from the plate's middle plane; origin at the far edge's
+        middle): (0, -mat length, 0) when flat, about (0, 0, 2 thicknesses) when folded edge
+        on edge."""
+        rot = data.xmat[self.root].reshape(3, 3)
+        return rot.T @ (self.near_edge(data) - data.xpos[self.root])
+
+    def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        self.record = {"max_root_shift": 0.0, "release_vector": None}
+
+    def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        mujoco.mj_kinematics(self.model, data)
+        self.record["release_vector"] = self.fold_vector(data)
+
+    def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
+        p, s0 = data.xpos[self.root], self.root_start
+        shift = math.hypot(float(p[0] - s0[0]), float(p[1] - s0[1]))
+        if shift > self.record["max_root_shift"]:
+            self.record["max_root_shift"] = shift
+
+    def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+        c = self.success_cfg
+        ref = np.asarray(self.scene["release_vector"], dtype=float).reshape(-1, 3)
+        ref = ref[self.demo if len(ref) > 1 else 0]
+        rel = self.record["release_vector"]
+        offset = height = None
+        if rel is not None:
+            offset = float(np.hypot(rel[0] - ref[0], rel[1] - ref[1]))
+            height = float(rel[2])
+        placed = bool(grasp.release_reason == "opened" and offset is not None
+                      and offset <= float(c["fold_radius"])
+                      and height <= float(c["max_release_height"]))
+        # folded: the near edge lies over the far half, every strip in one of two layers
+        end = self.fold_vector(data)
+        over = bool(-self.half_length <= end[1] <= float(c["fold_radius"]))
+        heights = data.xpos[self.strips, 2] - self.table_z
+        layer = float(c["max_layer_height"])
+        layered = bool(heights[0] <= layer and np.all(heights <= 2 * layer))
+        ok = bool(placed and over and layered)
+        return ok, {"release_offset": offset, "release_height": height,
+                    "fold_end_y": float(end[1]), "mat_layered": layered,
+                    "max_root_shift": float(self.record["max_root_shift"])}
+
+    def scene_state(self) -> dict[str, Any]:
+        state = super().scene_state()
+        state["root_start"] = self.root_start.copy()
+        return state
+
+    def restore_scene_state(self, state: dict[str, Any]) -> None:
+        super().restore_scene_state(state)
+        self.root_start = np.asarray(state["root_start"], dtype=float).copy()
+
+
 class PouringScene(Scene):
     """A cup holding `n_beans` beans (free spheres); a square container where the demos pour.
     Success: see the module docstring (the cup never slips; enough beans in the container,
@@ -976,6 +1100,7 @@ SCENES: dict[str, type[Scene]] = {
     "wineglass": GlassScene,
     "pan2stove": PanScene,
     "obstaclerotate": ObstacleScene,
+    "matfolding": MatScene,
 }
 
 
