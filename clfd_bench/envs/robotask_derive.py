@@ -29,6 +29,11 @@ number's procedure as a comment next to it. What is derived:
   reaches in the first fifth of the demos; the rack's walls as the glass tray's; the stove as
   the bottle's shelf, under the pan at the demos' ends; the release height and place radius
   bounds;
+- matfolding (RoboTasks9): the table 1.5 cm under the lowest start grasp point, lowered until
+  every demo's hand clears it by 1.5 cm; the bound of the pinched edge's turn in the fingers
+  (the demos' largest + 10 deg); from the demos replayed, where each lets the edge go (in the
+  far half's frame and in the world) and how it leaves the mat (its heading, the strips turned
+  over), with radii from how much replaying the demos 2x slower and 1.5x faster moves them;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
   tracking; a demo whose backward start does not track gets the IK solution of its first pose

@@ -39,6 +39,14 @@ end state alone:
 - pan2stove (held: the pan, by its handle, welded; RoboTasks9): as the glass, with a pan rack
   (`max_rack_shift`, `max_rack_tilt_deg`) and a stove: at the end the pan lies flat on the
   stove (its bottom down, within `max_tilt_deg` of level).
+- matfolding (held: the middle of a mat's near edge, welded, turning between the pads on a ball
+  joint as far as the demos turn it; RoboTasks9): held until the gripper opens; at that moment
+  the near edge is within `fold_radius` of where demo j lets it go in the far half's frame (where
+  on the mat the fold puts it) and within `place_radius` of where demo j lets it go in the world
+  (where on the table); at the end the far half lies flat on the table with at least
+  `min_turned_strips` strips of the near half turned over onto it in one layer, and its heading
+  on the table is within `max_heading_error_deg` of where demo j leaves it (the demos drag and
+  turn the mat as they fold it).
 
 Every scene stands on a table (`[scene] table_z`, the height of its top in the robot base frame;
 the robot stands on it, on a mount when the table is lower than the robot's base). The table top
