@@ -172,12 +172,15 @@ def test_a_mat_folded_while_dragged_5_cm_off_is_not_where_the_demo_leaves_it(env
 
 def test_a_mat_rolled_over_in_a_straight_line_is_not_left_as_the_demo_leaves_it(envs):
     """The straight line carries the edge 8 cm above the mat and rolls the near half over:
-    folded edge on edge, but the mat lies unturned where demo 4 leaves it turned 17 deg."""
+    folded edge on edge, but the mat lies unturned where demo 4 leaves it turned 15 deg."""
     env = envs["matfolding"]
     c = env.unwrapped.spec_doc["success"]
     r = _run(env, "shortcut", 4)
     assert not r.success and r.info["release_reason"] == "opened"
-    assert r.info["mat_folded"] and r.info["turned_strips"] == 12
+    assert r.info["release_fold_offset"] <= c["fold_radius"]
+    assert r.info["release_offset"] <= c["place_radius"]
+    strips = len(env.unwrapped.scene.strips) - 1
+    assert r.info["mat_folded"] and r.info["turned_strips"] == strips  # every one turned over
     assert abs(r.info["mat_heading_error_deg"]) > c["max_heading_error_deg"] + 5.0
 
 

@@ -177,7 +177,7 @@ DESIGN: dict[str, dict[str, Any]] = {
         "task": {"physics_dt": 0.002},
         "grasp": {"kind": "weld", "body": "mat_pinch", **GRIP, "contact": "patch",
                   "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.0015,
-                  "exclude": ["mat12", "mat11", "mat10"], "prop_pos": [0.0, 0.0, 0.0],
+                  "exclude": ["mat10", "mat9", "mat8"], "prop_pos": [0.0, 0.0, 0.0],
                   "prop_quat": IDENTITY},
         "scene": {"table_clearance": POSITION_MARGIN, "table_xy": [-0.3, 0.9, -1.0, 0.6],
                   "jitter_factor": 1.3},
@@ -1119,9 +1119,9 @@ def _derive_mat(task, design, starts) -> dict[str, Any]:
                     "the far half, in one layer (upside down within 25 deg, over the far "
                     "plate, at most max_layer_height above it). Procedure: the fewest in the "
                     "demos' replays, 2x slower and 1.5x faster ([derived] turned_strips*), "
-                    "less one (4 of the 12 strips stand up or fold back at the near edge in "
-                    "some demos: the edge strip flips back when the hand, tilted 35-60 deg "
-                    "back, lets it go 5-8 cm above the mat)"),
+                    "less one (in some demos the last strips fold back at the near edge: the "
+                    "edge strip flips back when the hand, tilted 35-60 deg back, lets it go "
+                    "5-8 cm above the mat)"),
                 "max_layer_height": (
                     "design: the far plate lies at most this high above the table (its "
                     "middle plane), a turned-over strip at most this high above the far "

@@ -379,7 +379,7 @@ def _doc_numbers() -> dict[str, Any]:
         "end_turn": obstacle["success"]["max_end_turn_deg"],
         "box_drop_cm": 100 * obstacle["success"]["max_release_height"],
         "box_radius_cm": 100 * obstacle["success"]["place_radius"],
-        "mat_mass": 1.0, "n_strips": 12, "strip_cm": 2.5,
+        "mat_mass": 1.0, "n_strips": 10, "strip_cm": 3,
         "pinch_turn_deg": float(np.degrees(mat["grasp"]["slip_joints"][0][2])),
         "fold_radius_cm": 100 * mat["success"]["fold_radius"],
         "mat_place_radius_cm": 100 * mat["success"]["place_radius"],
