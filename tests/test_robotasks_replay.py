@@ -185,7 +185,7 @@ def test_a_mat_rolled_over_in_a_straight_line_is_not_left_as_the_demo_leaves_it(
 
 
 def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
-    """Stopped at half time, the edge is let go 13-24 cm above the mat (demo 0 excepted: it
+    """Stopped at half time, the edge is let go 20-24 cm above the mat (demo 0 excepted: it
     has finished its fold by then, 2.3 mm from its end pose)."""
     env = envs["matfolding"]
     c = env.unwrapped.spec_doc["success"]
