@@ -18,7 +18,7 @@ from clfd_bench.execution.rollout import rollout
 ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
         "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
         "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2",
-        "obstaclerotate": "clfd/ObstacleRotate-v2"}
+        "obstaclerotate": "clfd/ObstacleRotate-v2", "matfolding": "clfd/MatFolding-v2"}
 
 
 @pytest.fixture(scope="module")
@@ -157,6 +157,41 @@ def test_a_box_carried_around_the_obstacle_without_turning_it_fails(envs):
     r = _run(envs["obstaclerotate"], "frozen-orientation", 5)
     assert not r.success and r.info["obstacle_touched_by"] is None
     assert r.info["release_reason"] == "opened" and r.info["object_max_turn_deg"] < 1.0
+
+
+def test_a_mat_folded_while_dragged_5_cm_off_is_not_where_the_demo_leaves_it(envs):
+    """The drifting hand drags the whole mat along: on the mat the edge lands where demo j's
+    does, but on the table it is let go 5 cm from where demo j lets it go."""
+    env = envs["matfolding"]
+    c = env.unwrapped.spec_doc["success"]
+    r = _run(env, "drift", 0)
+    assert not r.success and r.info["release_reason"] == "opened"
+    assert r.info["release_fold_offset"] <= c["fold_radius"]  # the fold itself is right
+    assert r.info["release_offset"] > 0.04 > c["place_radius"]
+
+
+def test_a_mat_rolled_over_in_a_straight_line_is_not_left_as_the_demo_leaves_it(envs):
+    """The straight line carries the edge 8 cm above the mat and rolls the near half over:
+    folded edge on edge, but the mat lies unturned where demo 4 leaves it turned 15 deg."""
+    env = envs["matfolding"]
+    c = env.unwrapped.spec_doc["success"]
+    r = _run(env, "shortcut", 4)
+    assert not r.success and r.info["release_reason"] == "opened"
+    assert r.info["release_fold_offset"] <= c["fold_radius"]
+    assert r.info["release_offset"] <= c["place_radius"]
+    strips = len(env.unwrapped.scene.strips) - 1
+    assert r.info["mat_folded"] and r.info["turned_strips"] == strips  # every one turned over
+    assert abs(r.info["mat_heading_error_deg"]) > c["max_heading_error_deg"] + 5.0
+
+
+def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
+    """Stopped at half time, the edge is let go 20-24 cm above the mat (demo 0 excepted: it
+    has finished its fold by then, 2.3 mm from its end pose)."""
+    env = envs["matfolding"]
+    c = env.unwrapped.spec_doc["success"]
+    r = _run(env, "stop-early", 6)
+    assert not r.success and r.info["release_reason"] == "opened"
+    assert r.info["release_offset"] > 0.1 > c["place_radius"]
 
 
 def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():

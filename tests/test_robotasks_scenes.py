@@ -459,6 +459,32 @@ def test_obstaclerotate_obstacle_and_shelf_are_what_the_demos_derive():
     assert all(d["demo_replay_success"])
 
 
+def test_matfolding_thresholds_are_what_the_demos_replays_derive():
+    spec = load_task_spec("matfolding")
+    s, d, c = spec["scene"], spec["derived"], spec["success"]
+    n = len(spec["start"]["qpos"])
+    assert np.shape(s["release_vector"]) == np.shape(s["release_edge"]) == (n, 3)
+    assert len(s["end_heading_deg"]) == n
+    jitter = max(max(d["release_jitter_slower"]), max(d["release_jitter_faster"]))
+    assert c["fold_radius"] == pytest.approx(max(0.02, 1.3 * jitter))
+    jitter = max(max(d["release_edge_jitter_slower"]), max(d["release_edge_jitter_faster"]))
+    assert c["place_radius"] == pytest.approx(max(0.015, 1.3 * jitter))
+    jitter = max(max(d["heading_jitter_slower"]), max(d["heading_jitter_faster"]))
+    assert c["max_heading_error_deg"] == pytest.approx(max(10.0, 1.3 * jitter))
+    fewest = min(min(d["turned_strips"]), min(d["turned_strips_slower"]),
+                 min(d["turned_strips_faster"]))
+    assert c["min_turned_strips"] == fewest - 1
+    bound = spec["grasp"]["slip_joints"][0]
+    assert bound[0] == "pinch_turn"
+    assert np.degrees(bound[2]) == pytest.approx(max(d["pinch_turn_max_deg"]) + 10.0)
+    # the table under the lowest start grasp less 1.5 cm, lowered until every demo's hand
+    # clears it by 1.5 cm
+    first = min(d["start_grasp_z"]) - 0.015
+    assert s["table_z"] <= first
+    assert min(d["hand_table_gap"]) + (first - s["table_z"]) == pytest.approx(0.015, abs=1e-6)
+    assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
+
+
 def test_plate_success_fails_once_the_rack_was_knocked(envs):
     env = envs["platestandingtolying"]
     env.reset(options={"demo": 0})

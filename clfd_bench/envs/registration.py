@@ -11,6 +11,7 @@ Ids (each env has its own version, `env_version(name)`; all are `-v2` today):
 | `clfd/WineGlass-v2` | RoboTasks9 `wineglass` | same |
 | `clfd/PanToStove-v2` | RoboTasks9 `pan2stove` | same |
 | `clfd/ObstacleRotate-v2` | RoboTasks9 `obstaclerotate` | same |
+| `clfd/MatFolding-v2` | RoboTasks9 `matfolding` | same |
 | `clfd/Scoop-v2` | RoboTasks9 `scoop` | same |
 | `clfd/HelloWorld-<letter>-v2` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
 | `clfd/HelloWorld-v2` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
@@ -41,6 +42,7 @@ ROBOTASKS_ENVS: dict[str, str] = {
     "WineGlass": "wineglass",
     "PanToStove": "pan2stove",
     "ObstacleRotate": "obstaclerotate",
+    "MatFolding": "matfolding",
     "Scoop": "scoop",
 }
 ROBOTASKS_ENTRY_POINT = "clfd_bench.envs.robotasks:RoboTaskEnv"

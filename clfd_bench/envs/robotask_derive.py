@@ -29,6 +29,11 @@ number's procedure as a comment next to it. What is derived:
   reaches in the first fifth of the demos; the rack's walls as the glass tray's; the stove as
   the bottle's shelf, under the pan at the demos' ends; the release height and place radius
   bounds;
+- matfolding (RoboTasks9): the table 1.5 cm under the lowest start grasp point, lowered until
+  every demo's hand clears it by 1.5 cm; the bound of the pinched edge's turn in the fingers
+  (the demos' largest + 10 deg); from the demos replayed, where each lets the edge go (in the
+  far half's frame and in the world) and how it leaves the mat (its heading, the strips turned
+  over), with radii from how much replaying the demos 2x slower and 1.5x faster moves them;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
   tracking; a demo whose backward start does not track gets the IK solution of its first pose
@@ -167,6 +172,17 @@ DESIGN: dict[str, dict[str, Any]] = {
                   "obstacle_xy": [0.20, 0.43, -0.24, 0.00], "obstacle_top": 0.30},
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01},
         "camera": {"distance": 1.35, "azimuth": 160.0, "elevation": -30.0},
+    },
+    "matfolding": {
+        "task": {"physics_dt": 0.002},
+        "grasp": {"kind": "weld", "body": "mat_pinch", **GRIP, "contact": "patch",
+                  "max_slip": 0.03, "max_slip_angle_deg": 30.0, "closed_opening": 0.0015,
+                  "exclude": ["mat10", "mat9", "mat8"], "prop_pos": [0.0, 0.0, 0.0],
+                  "prop_quat": IDENTITY},
+        "scene": {"table_clearance": POSITION_MARGIN, "table_xy": [-0.3, 0.9, -1.0, 0.6],
+                  "jitter_factor": 1.3},
+        "success": {"max_layer_height": 0.01},
+        "camera": {"distance": 1.3, "azimuth": 60.0, "elevation": -30.0},
     },
     "scoop": {
         "task": {"physics_dt": 0.002, "release_after": False},
@@ -1118,6 +1134,174 @@ def _turn_deg(quaternions: np.ndarray) -> np.ndarray:
     return np.degrees(angle - angle[0])
 
 
+def _mat_replays(task, doc: dict[str, Any], time_scale: float = 1.0) -> dict[str, np.ndarray]:
+    """Each demo replayed (+ 1 s settling, no motion-limit checks) in the scene of `doc`, its
+    duration scaled by `time_scale` (as `_replay_demos`), [N] or [N, 3] per quantity:
+    `turn`, the largest turn of the pinched edge between the pads while held (rad);
+    `release_vector`, where the near edge's middle is in the far plate's frame when the gripper
+    lets it go (`MatScene.fold_vector`; NaN: never let go); `release_edge`, where it is in the
+    world then; after the settling `heading`, the far plate's heading (deg,
+    `MatScene.heading_deg`), `turned`, the strips turned over onto the far half
+    (`MatScene.turned_strips`), `root_shift`, the far plate's largest shift (m) and `success`."""
+    from clfd_bench.data.resample import resample
+
+    env = RoboTaskEnv("matfolding", spec=doc, limits=None)
+    n = len(task.positions)
+    out = {"turn": np.zeros(n), "release_vector": np.full((n, 3), np.nan),
+           "release_edge": np.full((n, 3), np.nan), "heading": np.zeros(n),
+           "turned": np.zeros(n, dtype=int), "root_shift": np.zeros(n),
+           "success": np.zeros(n, dtype=bool)}
+    for j in range(n):
+        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
+        if time_scale != 1.0:
+            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
+        actions = env.trajectory_to_actions(traj)
+        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        env.reset(options={"demo": j, "horizon": len(actions)})
+        for a in actions:
+            env.step(a)
+            if env.grasp.held(env.data):
+                out["turn"][j] = max(out["turn"][j],
+                                     env.grasp.slips(env.data).get("pinch_turn", 0.0))
+        rec, scene = env.scene.record, env.scene
+        if rec["release_vector"] is not None:
+            out["release_vector"][j] = rec["release_vector"]
+            out["release_edge"][j] = rec["release_edge"]
+        out["heading"][j] = scene.heading_deg(env.data)
+        out["turned"][j] = scene.turned_strips(env.data)
+        info = env.evaluate()
+        out["root_shift"][j] = info["max_root_shift"]
+        out["success"][j] = info["is_success"]
+    env.close()
+    return out
+
+
+def _angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a - b (deg), wrapped to [-180, 180)."""
+    return (np.asarray(a) - np.asarray(b) + 180.0) % 360.0 - 180.0
+
+
+def _derive_mat(task, design, starts) -> dict[str, Any]:
+    d = design["scene"]
+    grasp = dict(design["grasp"])
+    g0 = grasp_points(task.positions[:, 0], task.quaternions[:, 0])
+    table_z = float(min(0.0, g0[:, 2].min() - d["table_clearance"]))
+    n = len(task.positions)
+    scene = {"table_z": table_z, "table_xy": d["table_xy"],
+             "release_vector": np.zeros((n, 3)), "release_edge": np.zeros((n, 3)),
+             "end_heading_deg": np.zeros(n)}
+    # nothing judged while deriving
+    lenient = {"fold_radius": 1.0, "place_radius": 1.0, "max_heading_error_deg": 360.0,
+               "min_turned_strips": 0}
+    # the pinch's turn with no bound
+    free = {**grasp, "slip_joints": [["pinch_turn", 0.0, float(np.pi)]]}
+    provisional = {"task": {"name": "matfolding", **design["task"]}, "grasp": free,
+                   "scene": scene, "success": {**design["success"], **lenient},
+                   "start": {"qpos": starts}}
+    # lower the table until the hand clears it by 1.5 cm in every demo (the hand is tilted
+    # 35-60 deg at the end: it comes lower than the fingertips)
+    hand_gaps, _, _ = _ghost_clearance(task, provisional, ("floor",))
+    deficit = float(d["table_clearance"] - hand_gaps.min())
+    if deficit > 0:
+        scene["table_z"] = table_z = table_z - deficit
+    free_runs = _mat_replays(task, provisional)
+    bound = float(np.radians(np.degrees(free_runs["turn"].max()) + TURN_MARGIN_DEG))
+    slip = {"slip_joints": [["pinch_turn", 0.0, bound]]}
+    # where each demo lets the edge go and leaves the mat, in the scene with that bound; and
+    # how much replaying the same paths 2x slower and 1.5x faster moves it
+    doc = {**provisional, "grasp": {**grasp, **slip}}
+    runs = _mat_replays(task, doc)
+    if not np.isfinite(runs["release_vector"]).all():
+        raise RuntimeError("matfolding: a demo replay never let the mat go")
+    timed = [_mat_replays(task, doc, time_scale=f) for f in (2.0, 1.0 / 1.5)]
+    jitter = {
+        "vector": [np.linalg.norm(r["release_vector"] - runs["release_vector"], axis=1)
+                   for r in timed],
+        "edge": [np.linalg.norm(r["release_edge"] - runs["release_edge"], axis=1)
+                 for r in timed],
+        "heading": [np.abs(_angle_diff(r["heading"], runs["heading"])) for r in timed]}
+    if not all(np.isfinite(v).all() for v in jitter["vector"]):
+        raise RuntimeError("matfolding: a slower / faster demo replay never let the mat go")
+    k = float(d["jitter_factor"])
+    scene.update({"release_vector": runs["release_vector"],
+                  "release_edge": runs["release_edge"], "end_heading_deg": runs["heading"]})
+    success = {
+        "fold_radius": max(PLACE_RADIUS, k * float(np.max(jitter["vector"]))),
+        "place_radius": max(POSITION_MARGIN, k * float(np.max(jitter["edge"]))),
+        "max_heading_error_deg": max(TURN_MARGIN_DEG, k * float(np.max(jitter["heading"]))),
+        "min_turned_strips": int(min(r.min() for r in [runs["turned"]] + [t["turned"]
+                                                                          for t in timed]) - 1)}
+    return {
+        "scene": scene,
+        "grasp": slip,
+        "success": success,
+        "derived": {"start_grasp_z": g0[:, 2], "hand_table_gap": hand_gaps,
+                    "pinch_turn_max_deg": np.degrees(free_runs["turn"]),
+                    "root_shift_max": runs["root_shift"], "turned_strips": runs["turned"],
+                    "turned_strips_slower": timed[0]["turned"],
+                    "turned_strips_faster": timed[1]["turned"],
+                    "release_jitter_slower": jitter["vector"][0],
+                    "release_jitter_faster": jitter["vector"][1],
+                    "release_edge_jitter_slower": jitter["edge"][0],
+                    "release_edge_jitter_faster": jitter["edge"][1],
+                    "heading_jitter_slower": jitter["heading"][0],
+                    "heading_jitter_faster": jitter["heading"][1]},
+        "comments": {
+            "scene": {
+                "table_z": "the table top: the lowest grasp point at the demos' starts "
+                           "([derived] start_grasp_z) less 1.5 cm, lowered until the hand "
+                           "clears it by 1.5 cm in every demo ([derived] hand_table_gap, at "
+                           "the table before lowering); the mat lies on it and its last strips "
+                           "ramp up to each demo's start grasp",
+                "release_vector": "per demo j: where the middle of the mat's near edge is "
+                                  "in the far plate's frame (x along the edge, y towards the "
+                                  "far edge, z up; origin at the far edge's middle) when the "
+                                  "gripper lets it go in demo j's replay (in this scene, "
+                                  "with the grasp's slip bound)",
+                "release_edge": "per demo j: where the middle of the mat's near edge is in the "
+                                "world when the gripper lets it go in demo j's replay",
+                "end_heading_deg": "per demo j: the far plate's heading on the table (its "
+                                   "edge's angle from the world x about the vertical; 0 as "
+                                   "laid at reset) after demo j's replay and 1 s of settling: "
+                                   "the demos drag and turn the mat ([derived] root_shift_max)"},
+            "grasp": {"slip_joints": (
+                "how far the pinched edge may turn between the pads (the ball joint "
+                "pinch_turn's angle since the grasp, rad) before it slips out. Procedure: the "
+                "demos replayed with no bound ([derived] pinch_turn_max_deg), max + 10 deg")},
+            "success": {
+                "fold_radius": (
+                    "when the gripper opens, the near edge's middle must be within this "
+                    "distance (3-D, in the far plate's frame) of where demo j lets it go "
+                    "([scene] release_vector): where on the mat the edge is laid. Procedure: "
+                    "1.5 cm of position margin + 5 mm, or 1.3 x the largest shift the demos "
+                    "replayed 2x slower and 1.5x faster show ([derived] release_jitter_*) if "
+                    "that is larger"),
+                "place_radius": (
+                    "and within this distance (3-D, world) of where demo j lets it go "
+                    "([scene] release_edge): where on the table. Procedure: the 1.5 cm "
+                    "position margin, or 1.3 x the largest shift the slower / faster replays "
+                    "show ([derived] release_edge_jitter_*) if that is larger"),
+                "max_heading_error_deg": (
+                    "after the settling the far plate's heading must be within this of demo "
+                    "j's ([scene] end_heading_deg): the folded mat lies turned on the table "
+                    "as demo j leaves it. Procedure: 10 deg of turn margin, or 1.3 x the "
+                    "largest change the slower / faster replays show ([derived] "
+                    "heading_jitter_*) if that is larger"),
+                "min_turned_strips": (
+                    "and at least this many strips of the near half must lie turned over on "
+                    "the far half, in one layer (upside down within 25 deg, over the far "
+                    "plate, at most max_layer_height above it). Procedure: the fewest in the "
+                    "demos' replays, 2x slower and 1.5x faster ([derived] turned_strips*), "
+                    "less one (in some demos the last strips fold back at the near edge: the "
+                    "edge strip flips back when the hand, tilted 35-60 deg back, lets it go "
+                    "5-8 cm above the mat)"),
+                "max_layer_height": (
+                    "design: the far plate lies at most this high above the table (its "
+                    "middle plane), a turned-over strip at most this high above the far "
+                    "plate's (its hinge; one layer on it is 3 mm up)")}},
+    }
+
+
 def _hand_x(quat: np.ndarray) -> np.ndarray:
     """[3] the hand's x axis in the world for a hand quaternion [4] (w, x, y, z)."""
     rot = np.empty(9)
@@ -1187,7 +1371,7 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
 _DERIVE = {"openbox": _derive_openbox, "bottle2shelf": _derive_bottle,
            "platestandingtolying": _derive_plate, "pouring": _derive_pouring,
            "wineglass": _derive_glass, "pan2stove": _derive_pan,
-           "obstaclerotate": _derive_obstacle, "scoop": _derive_scoop}
+           "obstaclerotate": _derive_obstacle, "matfolding": _derive_mat, "scoop": _derive_scoop}
 
 #: Comments on design entries every spec has.
 _COMMON_COMMENTS = {

@@ -37,7 +37,7 @@ else:  # pragma: no cover
 TASK_DATASETS: dict[str, str] = {
     "openbox": "robotasks", "bottle2shelf": "robotasks", "platestandingtolying": "robotasks",
     "pouring": "robotasks", "wineglass": "robotasks9", "pan2stove": "robotasks9",
-    "obstaclerotate": "robotasks9", "scoop": "robotasks9",
+    "obstaclerotate": "robotasks9", "matfolding": "robotasks9", "scoop": "robotasks9",
 }
 TASKS: tuple[str, ...] = tuple(TASK_DATASETS)
 _REQUIRED = {"task": ("name",), "grasp": ("kind", "body"), "scene": (), "success": (),

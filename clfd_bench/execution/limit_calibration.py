@@ -211,6 +211,12 @@ ADDED_AFTER_CALIBRATION: dict[str, str] = {
                       "0.0238 rad (0.47 x); no robot-scene contact; filtered rotation / joint "
                       "accelerations 0.64 x at 6 Hz / 0.37 x at 3 Hz. With it in the "
                       "measurement TRACKING_POSITION would be 14.7 mm.",
+    "MatFolding": "2026-12-04: 27 replays all successful; worst hand position error 2.5 mm "
+                  "(0.21 x TRACKING_POSITION; demo 3), rotation 0.0085 rad (0.17 x; demo 2 "
+                  "1.5x faster); no robot-scene contact; filtered rotation / joint peaks "
+                  "0.31 x at 5 Hz / 0.36 x at 2.5 Hz (0.40 x / 0.37 x at 6 Hz / 3 Hz): every "
+                  "value under those of the measurement, so adding it would leave the "
+                  "constants as they are.",
 }
 
 
