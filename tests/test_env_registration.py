@@ -13,7 +13,7 @@ from clfd_bench.envs.registration import env_id_for, env_specs, env_version
 
 def test_every_id_has_its_envs_version():
     specs = env_specs()
-    assert len(specs) == 8 + 7 + 1 + 26  # RoboTasks (4 + 4 of RoboTasks9), letters, text, LASA
+    assert len(specs) == 9 + 7 + 1 + 26  # RoboTasks (4 + 5 of RoboTasks9), letters, text, LASA
     for env_id in specs:
         name, version = env_id.split("/")[1].rsplit("-v", 1)
         assert int(version) == env_version(name)

@@ -20,7 +20,7 @@ ENV_IDS = registered_env_ids()
 
 def test_registry_holds_every_clfd_id():
     assert set(env_specs()) <= set(ENV_IDS)
-    assert len(ENV_IDS) == 8 + 7 + 1 + 26
+    assert len(ENV_IDS) == 9 + 7 + 1 + 26
 
 
 def _make(env_id: str) -> gym.Env:

@@ -52,3 +52,21 @@ def test_families_on_the_text_env():
             assert rec.success == (FAMILIES[family].expect == "succeed"), (family, rec.info)
     finally:
         env.close()
+
+
+def test_stop_early_of_a_demo_at_rest_by_half_time_is_no_wrong_trajectory():
+    """MatFolding demo 0 has folded the mat by half time and rests (2.3 mm, 0.2 deg): its
+    first half is the demo; of every other demo of every env, stopping at half time is wrong."""
+    from clfd_bench.execution.perturb import perturb
+    from clfd_bench.execution.replay import is_distinct
+
+    at_rest = []
+    for env_id in SHAPE_ENVS:
+        env = gym.make(env_id, disable_env_checker=True)
+        base = env.unwrapped
+        for d in range(base.num_demos):
+            half = perturb("stop-early", base.demo_trajectory(d))
+            if not is_distinct(base, d, "stop-early", half):
+                at_rest.append((env_id, d))
+        env.close()
+    assert at_rest == [("clfd/MatFolding-v2", 0)]

@@ -7,6 +7,7 @@ runs one demo per family on every env). The motion-limit checks of `PandaEnv` ar
 from __future__ import annotations
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import pytest
 
@@ -18,7 +19,8 @@ from clfd_bench.execution.rollout import rollout
 ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
         "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
         "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2",
-        "obstaclerotate": "clfd/ObstacleRotate-v2", "matfolding": "clfd/MatFolding-v2"}
+        "obstaclerotate": "clfd/ObstacleRotate-v2", "matfolding": "clfd/MatFolding-v2",
+        "scoop": "clfd/Scoop-v2"}
 
 
 @pytest.fixture(scope="module")
@@ -193,6 +195,44 @@ def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
     assert not r.success and r.info["release_reason"] == "opened"
     assert r.info["release_offset"] > 0.1 > c["place_radius"]
 
+
+
+def _bumped(env, demo, height):
+    """Demo `demo` with its path raised by `height` (m) mid-way (a sine bump: the start and end
+    poses unchanged)."""
+    traj = env.unwrapped.demo_trajectory(demo).copy()
+    traj[:, 2] += height * np.sin(np.linspace(0.0, np.pi, len(traj)))
+    return traj
+
+
+def test_a_scoop_carried_over_the_beans_takes_none(envs):
+    env = envs["scoop"]
+    r = rollout(env, _bumped(env, 2, 0.12), demo=2)
+    assert not r.success and r.info["beans_scooped"] == 0 and r.info["beans_in_scoop"] == 0
+    assert r.info["end_offset"] < env.unwrapped.spec_doc["success"]["end_radius"]
+
+
+def test_a_scoop_pushed_down_to_the_bins_floor_touches_it(envs):
+    env = envs["scoop"]
+    r = rollout(env, _bumped(env, 2, -0.12), demo=2)
+    assert not r.success and r.info["bin_touched_by"] is not None, r.info
+
+
+def test_beans_tipped_out_of_the_scoop_before_the_end_fail(envs):
+    """The demo, but over its last quarter the hand rolls 120 deg about its x axis (the tool's
+    direction): the bowl turns over and the beans fall out."""
+    env = envs["scoop"]
+    traj = env.unwrapped.demo_trajectory(3).copy()
+    n = len(traj)
+    for t in range(3 * n // 4, n):
+        roll = np.radians(120.0) * min(1.0, (t - 3 * n // 4) / (n // 8))
+        q = np.empty(4)
+        mujoco.mju_mulQuat(q, traj[t, 3:], np.array([np.cos(roll / 2), np.sin(roll / 2), 0, 0]))
+        traj[t, 3:] = q
+    r = rollout(env, traj, demo=3)
+    c = env.unwrapped.spec_doc["success"]
+    assert not r.success and r.info["beans_scooped"] >= c["min_beans"]
+    assert r.info["beans_in_scoop"] < c["min_beans"], r.info
 
 def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
     """Beyond the generic families (clfd_bench.execution.task_variants; every demo:

@@ -485,6 +485,101 @@ def test_matfolding_thresholds_are_what_the_demos_replays_derive():
     assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
 
 
+
+def test_scoop_bin_and_thresholds_are_what_the_demos_replays_derive():
+    spec = load_task_spec("scoop")
+    s, d, c = spec["scene"], spec["derived"], spec["success"]
+    assert s["surface_z"] == pytest.approx(max(d["lip_lowest_z"]) + 0.035)  # every lip 3.5 cm in
+    assert s["bin_rim_z"] == pytest.approx(s["surface_z"])
+    assert s["bin_floor_z"] <= min(d["scoop_lowest_z"]) - 0.015 + 1e-9
+    assert min(d["bin_clearance"]) >= 0.015 - 5e-4  # scoop and arm clear the bin
+    fewest = min(min(d["beans_in_scoop_demos"]), min(d["beans_in_scoop_slower"]),
+                 min(d["beans_in_scoop_faster"]))
+    assert c["min_beans"] == max(1, fewest - 1)
+    assert c["max_spilled"] == max(d["beans_spilled_demos"]) + 1
+    jitter = max(max(d["end_jitter_slower"]), max(d["end_jitter_faster"]))
+    assert c["end_radius"] == pytest.approx(max(0.02, 1.3 * jitter))
+    assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
+
+
+def _scoop_at(env, pos, quat):
+    set_free_pose(env.model, env.data, env.scene.scoop, np.asarray(pos, dtype=float), quat)
+    mujoco.mj_kinematics(env.model, env.data)
+    env.scene.track(env.data, env.grasp)
+
+
+def test_the_scoop_takes_beans_only_over_its_lip(envs):
+    """The bowl (opening up) raised 3 cm through the beans takes what passes in over its lip;
+    pushed 3 cm down it takes nothing (the grains come at its floor: displaced); a bean that
+    falls back into the bin's contents rejoins them (kinematic: no physics steps)."""
+    env = envs["scoop"]
+    sc = env.scene
+    s = env.spec_doc["scene"]
+    x0, x1, y0, y1 = s["bin_walls"]
+    up = _quat_about([1.0, 0.0, 0.0], np.pi)  # scoop z down: the opening faces up
+    centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, s["surface_z"] - 0.06])
+    mid = sc._cavity.mean(0)
+
+    def origin(bowl_centre):  # the scoop's origin that puts the bowl's centre there
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, up)
+        return bowl_centre - rot.reshape(3, 3) @ mid
+
+    for dz, expect in ((0.03, True), (-0.03, False)):
+        env.reset(options={"demo": 0})
+        _scoop_at(env, origin(centre), up)
+        for k in range(1, 7):  # 5 mm per step
+            _scoop_at(env, origin(centre + [0.0, 0.0, dz * k / 6]), up)
+        assert (sc.record["scooped"] > 0) is expect, (dz, sc.record)
+        assert sc.beans_in_bowl(env.data) == sc.record["scooped"]
+    # after the raise: a bean put under the surface beside the bowl rejoins the bin's contents
+    env.reset(options={"demo": 0})
+    _scoop_at(env, origin(centre), up)
+    for k in range(1, 7):
+        _scoop_at(env, origin(centre + [0.0, 0.0, 0.005 * k]), up)
+    taken = sc.beans_in_bowl(env.data)
+    assert taken >= 3 and sc.record["returned"] == 0
+    i = int(np.flatnonzero(sc._active)[0])
+    a = sc._bean_qpos[i]
+    env.data.qpos[a:a + 3] = [x0 + 0.03, y0 + 0.03, s["surface_z"] - 0.05]
+    mujoco.mj_kinematics(env.model, env.data)
+    sc.track(env.data, env.grasp)
+    assert sc.record["returned"] == 1 and not sc._active[i]
+    assert sc.beans_in_bowl(env.data) == taken - 1
+
+
+def test_scoop_success_needs_the_beans_the_end_point_and_the_bin_untouched(envs):
+    env = envs["scoop"]
+    sc = env.scene
+    c = env.spec_doc["success"]
+    end = np.asarray(env.spec_doc["scene"]["end_centre"][0])
+    env.reset(options={"demo": 0})
+    up = _quat_about([1.0, 0.0, 0.0], np.pi)
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, up)
+    home = end - rot.reshape(3, 3) @ sc._cavity.mean(0)
+    set_free_pose(env.model, env.data, sc.scoop, home, up)
+    mujoco.mj_kinematics(env.model, env.data)
+    floor = sc.bowl_centre(env.data) + [0.0, 0.0, 0.016 - sc.bean_radius]  # on its floor
+    for n, shift, touched, spilled, expected in [
+            (c["min_beans"], 0.0, None, 0, True), (c["min_beans"] - 1, 0.0, None, 0, False),
+            (c["min_beans"], c["end_radius"] + 0.005, None, 0, False),
+            (c["min_beans"], 0.0, "hand", 0, False),
+            (c["min_beans"], 0.0, None, c["max_spilled"] + 1, False)]:
+        set_free_pose(env.model, env.data, sc.scoop, home + [shift, 0.0, 0.0], up)
+        sc.reset(env.data, 0, env.grasp)
+        set_free_pose(env.model, env.data, sc.scoop, home + [shift, 0.0, 0.0], up)
+        for i in range(n):
+            sc._spawn(env.data, i, floor + [shift + (i % 3 - 1) * 0.025,
+                                             (i // 3 - 0.5) * 0.025, 0.0], np.zeros(3))
+        mujoco.mj_kinematics(env.model, env.data)
+        sc.start_record(env.data, env.grasp)
+        sc.record["bin_touched_by"] = touched
+        sc.record["spilled"] = spilled
+        ok, info = sc.success(env.data, env.grasp)
+        assert ok is expected, (n, shift, touched, spilled, info)
+        assert info["beans_in_scoop"] == n
+
 def test_plate_success_fails_once_the_rack_was_knocked(envs):
     env = envs["platestandingtolying"]
     env.reset(options={"demo": 0})

@@ -2,7 +2,8 @@
 
 Runs demo 0 of each env through `clfd_bench.execution.rollout` in this process (one core; MuJoCo and
 mink are single-threaded, torch is not involved) and reports x real time against the targets
-(>= 50x, >= 30x for Pouring and MatFolding), plus the IK and bare-physics cost per 60 Hz step.
+(>= 50x, >= 30x for Pouring, MatFolding and Scoop), plus the IK and bare-physics cost per
+60 Hz step.
 """
 
 from __future__ import annotations

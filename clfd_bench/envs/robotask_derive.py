@@ -34,6 +34,14 @@ number's procedure as a comment next to it. What is derived:
   (the demos' largest + 10 deg); from the demos replayed, where each lets the edge go (in the
   far half's frame and in the world) and how it leaves the mat (its heading, the strips turned
   over), with radii from how much replaying the demos 2x slower and 1.5x faster moves them;
+- obstaclerotate (RoboTasks9): the table as the bottle's; the obstacle's faces moved in until
+  every demo's box and arm clear it by 1.5 cm (replayed with the obstacle a ghost); the shelf as
+  the bottle's; the turn the demos make and undo;
+- scoop (RoboTasks9): the beans' level 3.5 cm over the highest of the demos' lowest points of
+  the bowl's lip; the bin's floor 1.5 cm under the scoop's lowest point, its walls 1.5 cm
+  outside the scoop below the rim, moved out until every demo's scoop and arm clear them by
+  1.5 cm (replayed with the bin a ghost); from the demos replayed (as they are, 2x slower,
+  1.5x faster) the beans they end with, the beans they spill and where the bowl ends;
 - every task: start configurations by backward IK tracking from the common end pose
   (`clfd_bench.sim.start_configs.backward_start_configs`), each checked by kinematic forward
   tracking; a demo whose backward start does not track gets the IK solution of its first pose
@@ -195,7 +203,7 @@ DESIGN: dict[str, dict[str, Any]] = {
                   # floor, from the opening (low z) up; and its outside
                   "bowl_cavity": [[0.214, -0.031, -0.02], [0.286, 0.031, 0.016]],
                   "bowl_outer": [[0.21, -0.035, -0.02], [0.29, 0.035, 0.02]],
-                  "dip": 0.03, "rim_above": 0.0, "clearance": POSITION_MARGIN,
+                  "dip": 0.035, "rim_above": 0.0, "clearance": POSITION_MARGIN,
                   "bin_wall_thickness": 0.008, "jitter_factor": 1.3},
         "solver": {"solver": "newton", "iterations": 20, "ls_iterations": 10,
                    "tolerance": 1e-8, "cone": "pyramidal"},
@@ -1056,16 +1064,20 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
     spilled = np.array([i["beans_spilled"] for i in infos])
     scooped = np.array([i["beans_scooped"] for i in infos])
     scene["end_centre"] = ends
-    jitter = np.array([np.linalg.norm(_scoop_replays(task, doc, f)[1] - ends, axis=1)
-                       for f in (2.0, 1.0 / 1.5)])
+    # Replayed 2x slower and 1.5x faster (the same path): how much that moves the end and
+    # changes the scoopful.
+    timed = [_scoop_replays(task, doc, f) for f in (2.0, 1.0 / 1.5)]
+    jitter = np.array([np.linalg.norm(e - ends, axis=1) for _, e in timed])
+    timed_beans = np.array([[i["beans_in_scoop"] for i in infos_f] for infos_f, _ in timed])
     radius = max(PLACE_RADIUS, d["jitter_factor"] * float(jitter.max()))
     return {
         "scene": scene,
-        "success": {"min_beans": int(max(1, beans.min() - 1)),
+        "success": {"min_beans": int(max(1, min(beans.min(), timed_beans.min()) - 1)),
                     "max_spilled": int(spilled.max() + 1), "end_radius": radius},
         "derived": {"scoop_lowest_z": dips, "lip_lowest_z": lips, "bin_clearance": gaps,
                     "beans_scooped_demos": scooped, "beans_in_scoop_demos": beans,
-                    "beans_spilled_demos": spilled, "end_jitter_slower": jitter[0],
+                    "beans_spilled_demos": spilled, "beans_in_scoop_slower": timed_beans[0],
+                    "beans_in_scoop_faster": timed_beans[1], "end_jitter_slower": jitter[0],
                     "end_jitter_faster": jitter[1]},
         "comments": {
             "scene": {
@@ -1076,7 +1088,7 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
                              "bin_clearance)",
                 "bin_floor_z": "the bin's inner floor: 1.5 cm under the lowest point the scoop "
                                "reaches in the demos ([derived] scoop_lowest_z)",
-                "surface_z": "the level of the beans: `dip` (design, 3 cm) over the highest of "
+                "surface_z": "the level of the beans: `dip` (design, 3.5 cm) over the highest of "
                              "the demos' lowest lip points (the edge of the bowl's opening; "
                              "[derived] lip_lowest_z), so that in every demo the beans flow "
                              "into the bowl over its lip",
@@ -1088,8 +1100,9 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
                               "demo j replayed (+ 1 s holding)"},
             "success": {
                 "min_beans": "beans that must be in the scoop at the end (after 1 s holding "
-                             "still). Procedure: the demos replayed ([derived] "
-                             "beans_in_scoop_demos): one fewer than the worst demo, at least 1",
+                             "still). Procedure: the demos replayed as they are, 2x slower and "
+                             "1.5x faster ([derived] beans_in_scoop_*): one fewer than the "
+                             "fewest, at least 1",
                 "max_spilled": "beans that may land outside the bin (table, stand, rim). "
                                "Procedure: the demos replayed ([derived] beans_spilled_demos): "
                                "one more than the worst demo",

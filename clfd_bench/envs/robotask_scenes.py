@@ -47,6 +47,12 @@ end state alone:
   `min_turned_strips` strips of the near half turned over onto it in one layer, and its heading
   on the table is within `max_heading_error_deg` of where demo j leaves it (the demos drag and
   turn the mat as they fold it).
+- scoop (held: a scoop, by its handle, welded, never let go; RoboTasks9): the scoop never
+  slips, and neither it nor the robot ever touches the bin (at any step); at the end (1 s after
+  the trajectory) its bowl's centre is within `end_radius` of where demo j ends it and at least
+  `min_beans` beans are in the bowl; at most `max_spilled` beans ever landed outside the bin.
+  The bin's contents are grain sites that become beans as the bowl takes them in over its lip
+  (`ScoopScene`).
 
 Every scene stands on a table (`[scene] table_z`, the height of its top in the robot base frame;
 the robot stands on it, on a mount when the table is lower than the robot's base). The table top

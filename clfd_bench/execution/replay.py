@@ -12,6 +12,11 @@ the task differ from one another: the shortcut of a straight line is that line. 
 of a shape family (`SHAPE_FAMILIES`) whose path lies within the task's largest inter-demo
 Hausdorff distance of the demo it came from (positions in metres on the robot) is not a wrong
 trajectory: its record is marked `applicable = False` and the table counts it apart ("n/a").
+For the same reason a `stop-early` variant (the demo's first half, then nothing) of a demo that
+has already come to rest by half time is the demo itself, not a wrong trajectory: when the
+demo's second half moves the hand less than `REST_TOLERANCE` (5 mm, the servo lag and IK error
+part of the position margins, and 2 deg) from where it is at half time, the variant is n/a too
+(MatFolding demo 0 folds in 8.5 of its 16.7 s and rests for the rest: 2.3 mm, 0.2 deg).
 """
 
 from __future__ import annotations
@@ -31,13 +36,17 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
 from clfd_bench.metrics.trajectory import hausdorff
 
-__all__ = ["MAX_FALSE_SUCCESS", "SHAPE_FAMILIES", "ReplayRecord", "confusion_table",
-           "families_for", "format_confusion", "is_distinct", "replay", "replay_trajectory"]
+__all__ = ["MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES", "ReplayRecord",
+           "confusion_table", "families_for", "format_confusion", "is_distinct", "replay",
+           "replay_trajectory"]
 
 #: A must-fail family may succeed on at most this fraction of an env's demos.
 MAX_FALSE_SUCCESS = 0.05
 #: Must-fail families that are wrong by the shape of their path (see the module docstring).
 SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
+#: A demo whose second half stays within (m, deg) of its pose at half time is at rest by then:
+#: its `stop-early` variant is not a wrong trajectory (see the module docstring).
+REST_TOLERANCE = (0.005, 2.0)
 
 
 @dataclasses.dataclass
@@ -126,12 +135,33 @@ def _demo_spread_m(dataset: str, task_name: str, units_per_m: float) -> float:
     return max(hausdorff(pts[i], pts[j]) for i in range(len(pts)) for j in range(i + 1, len(pts)))
 
 
+def _at_rest_after_half(env: PandaEnv, demo: np.ndarray) -> bool:
+    """Whether the demo [T, D] stays within `REST_TOLERANCE` of its pose at half time (the
+    point `stop-early` stops at) for its whole second half."""
+    demo = np.asarray(demo, dtype=float)
+    half = max(1, len(demo) // 2) - 1
+    pos = _positions_m(env, demo)
+    moved = float(np.linalg.norm(pos[half:] - pos[half], axis=1).max())
+    if moved > REST_TOLERANCE[0]:
+        return False
+    if demo.shape[1] != 7:
+        return True
+    q = demo[half:, 3:] / np.linalg.norm(demo[half:, 3:], axis=1, keepdims=True)
+    dot = np.clip(np.abs(q @ q[0]), 0.0, 1.0)
+    return float(np.degrees(2 * np.arccos(dot)).max()) <= REST_TOLERANCE[1]
+
+
 def is_distinct(env: PandaEnv, demo: int, family: str,
                 trajectory: np.ndarray | list[np.ndarray]) -> bool:
-    """Whether a variant of a shape family differs from demo `demo` by more than the task's
-    demos differ from one another (always True for the other families and for the text env,
-    whose letters are judged one by one)."""
-    if family not in SHAPE_FAMILIES or isinstance(trajectory, list):
+    """Whether a variant is a wrong trajectory: a variant of a shape family that differs from
+    demo `demo` by more than the task's demos differ from one another; a `stop-early` variant
+    of a demo not yet at rest at half time (`REST_TOLERANCE`); always True for the other
+    families and for the text env, whose letters are judged one by one."""
+    if isinstance(trajectory, list):
+        return True
+    if family == "stop-early":
+        return not _at_rest_after_half(env, env.demo_trajectory(demo))
+    if family not in SHAPE_FAMILIES:
         return True
     original = env.demo_trajectory(demo)
     spread = _demo_spread_m(env.dataset, env.task_name, _units_per_m(env))
@@ -229,5 +259,7 @@ def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
                  f"must fail on ≥ {100 * (1 - MAX_FALSE_SUCCESS):.0f} % of demos; ✗ marks a "
                  "cell that does not. n/a: variants of a shape family (shortcut, rush-wait, "
                  "mirror) that stay within the task's own inter-demo spread (largest Hausdorff "
-                 "distance between two demos) of the demo: no wrong trajectory, not counted.")
+                 "distance between two demos) of the demo, and stop-early variants of a demo "
+                 "already at rest at half time (its second half moves < 5 mm, < 2 deg): no "
+                 "wrong trajectory, not counted.")
     return "\n".join(lines)
