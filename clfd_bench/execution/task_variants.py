@@ -161,6 +161,67 @@ def over_the_top(lift: float = 0.28) -> Variant:
     return fn
 
 
+def bumped(height: float) -> Variant:
+    """The demo's path raised by `height` (m; negative: lowered) mid-way, a sine bump (the
+    start and end poses unchanged); the demo's orientations."""
+    def fn(traj):
+        out = traj.copy()
+        out[:, 2] += height * np.sin(np.linspace(0.0, np.pi, len(traj)))
+        return out
+    return fn
+
+
+def up_then_across(rise: float = 0.08) -> Variant:
+    """The demo to its lowest point, then straight up by `rise`, then straight across to its
+    end (min-jerk segments); the demo's orientations from the lowest point on, re-timed."""
+    def fn(traj):
+        k = int(np.argmin(traj[:, 2]))
+        n = len(traj) - k
+        a = n // 2
+        p0, p1 = traj[k, :3], traj[-1, :3]
+        up = np.r_[p0[:2], max(p0[2] + rise, p1[2])]
+        pos = np.concatenate([p0 + _mj(a)[:, None] * (up - p0),
+                              up + _mj(n - a)[:, None] * (p1 - up)])
+        idx = np.linspace(k, len(traj) - 1, n)
+        sl = Slerp(np.arange(k, len(traj)), _rot(traj[k:, 3:]))
+        out = traj.copy()
+        out[k:, :3] = pos
+        out[k:, 3:] = _wxyz(sl(idx))
+        return out
+    return fn
+
+
+def tilt_kept_from_lowest(traj: np.ndarray) -> np.ndarray:
+    """The demo's path, its orientation held from the lowest point on (never levelled)."""
+    k = int(np.argmin(traj[:, 2]))
+    out = traj.copy()
+    out[k:, 3:] = traj[k, 3:]
+    return out
+
+
+def rolled_at_the_end(deg: float = 120.0) -> Variant:
+    """The demo, its hand rolled `deg` about its own x axis over the last quarter (a scoop's
+    bowl turned over)."""
+    def fn(traj):
+        n, a = len(traj), 3 * len(traj) // 4
+        roll = np.radians(deg) * np.minimum(1.0, np.arange(n - a) / max(1, n // 8))
+        out = traj.copy()
+        out[a:, 3:] = _wxyz(_rot(traj[a:, 3:]) * Rotation.from_rotvec(
+            roll[:, None] * [1.0, 0.0, 0.0]))
+        return out
+    return fn
+
+
+def shortened(frac: float) -> Variant:
+    """The demo's path scaled about its start to `frac` of its horizontal extent (a fold laid
+    down short of the far edge)."""
+    def fn(traj):
+        out = traj.copy()
+        out[:, :2] = traj[0, :2] + frac * (traj[:, :2] - traj[0, :2])
+        return out
+    return fn
+
+
 #: env -> [(variant, expect, build)]; expect: "succeed", "fail".
 VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
     "clfd/WineGlass-v2": [
@@ -187,6 +248,24 @@ VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
         ("turned as the demo, never back", "fail", yaw_kept),
         ("carried unturned, turned and back over the shelf", "fail", yaw_at_the_end),
         ("straight across, over the obstacle's top", "either", over_the_top(0.28)),
+    ],
+    "clfd/MatFolding-v2": [
+        ("the arc 2 cm higher", "succeed", bumped(0.02)),
+        ("the arc 5 cm higher", "succeed", bumped(0.05)),
+        ("laid down at 80 % of the way (short of the far edge)", "fail", shortened(0.8)),
+        ("the arc 10 cm lower (the edge dragged over the mat)", "fail", bumped(-0.10)),
+        ("stopped at 90 %", "either", stop_at(0.9)),
+        ("stopped at 75 %", "either", stop_at(0.75)),
+    ],
+    "clfd/Scoop-v2": [
+        ("from the lowest point straight up 8 cm, then across to the end", "succeed",
+         up_then_across(0.08)),
+        ("carried 12 cm over the beans", "fail", bumped(0.12)),
+        ("the dip's tilt kept to the end (never levelled)", "fail", tilt_kept_from_lowest),
+        ("the bowl turned over at the end (hand rolled 120 deg)", "fail",
+         rolled_at_the_end(120.0)),
+        ("stopped at 90 %", "either", stop_at(0.9)),
+        ("stopped at 75 %", "either", stop_at(0.75)),
     ],
 }
 
