@@ -1059,16 +1059,18 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
     else:
         raise RuntimeError("scoop: the bin did not clear the demos in 12 steps")
     doc = _doc("scoop", design, scene, loose, starts)
-    infos, ends = _scoop_replays(task, doc)
+    infos = _replay_demos(task, doc)
+    ends = np.array([i["bowl_centre"] for i in infos])
     beans = np.array([i["beans_in_scoop"] for i in infos])
     spilled = np.array([i["beans_spilled"] for i in infos])
     scooped = np.array([i["beans_scooped"] for i in infos])
     scene["end_centre"] = ends
     # Replayed 2x slower and 1.5x faster (the same path): how much that moves the end and
     # changes the scoopful.
-    timed = [_scoop_replays(task, doc, f) for f in (2.0, 1.0 / 1.5)]
-    jitter = np.array([np.linalg.norm(e - ends, axis=1) for _, e in timed])
-    timed_beans = np.array([[i["beans_in_scoop"] for i in infos_f] for infos_f, _ in timed])
+    timed = [_replay_demos(task, doc, time_scale=f) for f in (2.0, 1.0 / 1.5)]
+    jitter = np.array([[np.linalg.norm(np.subtract(i["bowl_centre"], e)) for i, e in
+                        zip(infos_f, ends, strict=True)] for infos_f in timed])
+    timed_beans = np.array([[i["beans_in_scoop"] for i in infos_f] for infos_f in timed])
     radius = max(PLACE_RADIUS, d["jitter_factor"] * float(jitter.max()))
     return {
         "scene": scene,
@@ -1113,30 +1115,6 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
                               "end_jitter_*) if that is larger"},
         },
     }
-
-
-def _scoop_replays(task, doc: dict[str, Any], time_scale: float = 1.0
-                   ) -> tuple[list[dict[str, Any]], np.ndarray]:
-    """Each demo replayed (+ 1 s holding, no motion-limit checks) in the scene of `doc`, the
-    demos' durations scaled by `time_scale`: the env's final infos and the scoop's bowl centre
-    (world) at the end [N, 3]."""
-    from clfd_bench.data.resample import resample
-
-    env = RoboTaskEnv("scoop", spec=doc, limits=None)
-    infos, out = [], np.zeros((len(task.positions), 3))
-    for j in range(len(task.positions)):
-        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
-        if time_scale != 1.0:
-            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
-        actions = env.trajectory_to_actions(traj)
-        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
-        env.reset(options={"demo": j, "horizon": len(actions)})
-        for a in actions:
-            env.step(a)
-        infos.append(env.evaluate())
-        out[j] = env.scene.bowl_centre(env.data)
-    env.close()
-    return infos, out
 
 
 def _turn_deg(quaternions: np.ndarray) -> np.ndarray:

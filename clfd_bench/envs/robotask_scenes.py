@@ -974,6 +974,15 @@ class MatScene(Scene):
         self.root_start = np.asarray(state["root_start"], dtype=float).copy()
 
 
+def _beans(scene: dict[str, Any], task: str) -> tuple[int, float, tuple[str, ...]]:
+    """The beans of a scene's `[scene]` table: how many (`n_beans`, at least 1), their radius
+    (m) and body names `bean0..`."""
+    n = int(scene["n_beans"])
+    if n < 1:
+        raise ValueError(f"{task} needs n_beans >= 1, got {n}")
+    return n, float(scene["bean_radius"]), tuple(f"bean{i}" for i in range(n))
+
+
 class PouringScene(Scene):
     """A cup holding `n_beans` beans (free spheres); a square container where the demos pour.
     Success: see the module docstring (the cup never slips; enough beans in the container,
@@ -984,11 +993,7 @@ class PouringScene(Scene):
 
     def __init__(self, doc: dict[str, Any]):
         super().__init__(doc)
-        self.n_beans = int(self.scene["n_beans"])
-        self.bean_radius = float(self.scene["bean_radius"])
-        if self.n_beans < 1:
-            raise ValueError(f"pouring needs n_beans >= 1, got {self.n_beans}")
-        self.bean_names = tuple(f"bean{i}" for i in range(self.n_beans))
+        self.n_beans, self.bean_radius, self.bean_names = _beans(self.scene, "pouring")
         self.object_bodies = ("cup",) + self.bean_names
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
@@ -1165,12 +1170,7 @@ class ScoopScene(Scene):
 
     def __init__(self, doc: dict[str, Any]):
         super().__init__(doc)
-        s = self.scene
-        self.n_beans = int(s["n_beans"])
-        self.bean_radius = float(s["bean_radius"])
-        if self.n_beans < 1:
-            raise ValueError(f"scoop needs n_beans >= 1, got {self.n_beans}")
-        self.bean_names = tuple(f"bean{i}" for i in range(self.n_beans))
+        self.n_beans, self.bean_radius, self.bean_names = _beans(self.scene, "scoop")
         self.object_bodies = ("scoop",) + self.bean_names
 
     def edit_spec(self, spec: mujoco.MjSpec) -> None:
@@ -1442,14 +1442,15 @@ class ScoopScene(Scene):
         beans = self.beans_in_bowl(data)
         ends = np.asarray(self.scene.get("end_centre", [[0.0, 0.0, 0.0]]),
                           dtype=float).reshape(-1, 3)
-        offset = float(np.linalg.norm(self.bowl_centre(data)
-                                      - ends[self.demo if len(ends) > 1 else 0]))
+        centre = self.bowl_centre(data)
+        offset = float(np.linalg.norm(centre - ends[self.demo if len(ends) > 1 else 0]))
         touched = rec["bin_touched_by"]
         ok = (held and touched is None and beans >= int(c["min_beans"])
               and rec["spilled"] <= int(c["max_spilled"])
               and offset <= float(c.get("end_radius", np.inf)))
         return bool(ok), {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
                           "beans_scooped": int(rec["scooped"]), "end_offset": offset,
+                          "bowl_centre": [float(v) for v in centre],
                           "bin_touched_by": touched}
 
     def scene_state(self) -> dict[str, Any]:

@@ -316,7 +316,7 @@ attached), `release_reason` ("opened" / "slipped" / None), `slip_cause`, `grip_l
 `rack_in_place`; `object_tilt_deg`, `object_height`, `on_shelf`, `obstacle_touched_by`,
 `object_max_turn_deg`, `object_release_turn_deg`; `release_fold_offset`, `release_offset`,
 `fold_end_y`, `turned_strips`, `mat_folded`, `mat_heading_deg`, `mat_heading_error_deg`,
-`max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`,
+`max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`, `bowl_centre`,
 `bin_touched_by`).
 
 ## Version History
