@@ -498,7 +498,8 @@ def test_scoop_bin_and_thresholds_are_what_the_demos_replays_derive():
     assert c["min_beans"] == max(1, fewest - 1)
     assert c["max_spilled"] == max(d["beans_spilled_demos"]) + 1
     jitter = max(max(d["end_jitter_slower"]), max(d["end_jitter_faster"]))
-    assert c["end_radius"] == pytest.approx(max(0.02, 1.3 * jitter))
+    assert c["end_radius"] == pytest.approx(max(0.05 - 0.015, 1.3 * jitter))
+    assert c["max_tilt_deg"] == pytest.approx(max(d["end_bowl_tilt_deg"]) + 10.0)
     assert all(d["demo_replay_success"]) and max(d["demo_replay_grip_load_max"]) < 1.0
 
 
@@ -560,18 +561,28 @@ def test_scoop_success_needs_the_beans_the_end_point_and_the_bin_untouched(envs)
     home = end - rot.reshape(3, 3) @ sc._cavity.mean(0)
     set_free_pose(env.model, env.data, sc.scoop, home, up)
     mujoco.mj_kinematics(env.model, env.data)
-    floor = sc.bowl_centre(env.data) + [0.0, 0.0, 0.016 - sc.bean_radius]  # on its floor
-    for n, shift, touched, spilled, expected in [
-            (c["min_beans"], 0.0, None, 0, True), (c["min_beans"] - 1, 0.0, None, 0, False),
-            (c["min_beans"], c["end_radius"] + 0.005, None, 0, False),
-            (c["min_beans"], 0.0, "hand", 0, False),
-            (c["min_beans"], 0.0, None, c["max_spilled"] + 1, False)]:
-        set_free_pose(env.model, env.data, sc.scoop, home + [shift, 0.0, 0.0], up)
+    tilted = np.empty(4)  # the opening turned past max_tilt_deg from up
+    mujoco.mju_mulQuat(tilted, up, _quat_about([1.0, 0.0, 0.0],
+                                               np.radians(c["max_tilt_deg"] + 5.0)))
+    low = [0.0, 0.0, env.spec_doc["scene"]["bin_rim_z"] - end[2]]  # the bowl down in the bin
+    for n, shift, touched, spilled, quat, expected in [
+            (c["min_beans"], [0.0, 0.0, 0.0], None, 0, up, True),
+            (c["min_beans"] - 1, [0.0, 0.0, 0.0], None, 0, up, False),
+            (c["min_beans"], [c["end_radius"] + 0.005, 0.0, 0.0], None, 0, up, False),
+            (c["min_beans"], [0.0, 0.0, 0.0], "hand", 0, up, False),
+            (c["min_beans"], [0.0, 0.0, 0.0], None, c["max_spilled"] + 1, up, False),
+            (c["min_beans"], [0.0, 0.0, 0.0], None, 0, tilted, False),
+            (c["min_beans"], low, None, 0, up, False)]:
+        shift = np.asarray(shift)
+        set_free_pose(env.model, env.data, sc.scoop, home + shift, quat)
         sc.reset(env.data, 0, env.grasp)
-        set_free_pose(env.model, env.data, sc.scoop, home + [shift, 0.0, 0.0], up)
-        for i in range(n):
-            sc._spawn(env.data, i, floor + [shift + (i % 3 - 1) * 0.025,
-                                             (i // 3 - 0.5) * 0.025, 0.0], np.zeros(3))
+        set_free_pose(env.model, env.data, sc.scoop, home + shift, quat)
+        mujoco.mj_kinematics(env.model, env.data)
+        rot = env.data.xmat[sc.scoop].reshape(3, 3)
+        for i in range(n):  # on the bowl's floor, in the bowl's frame
+            local = [sc._cavity.mean(0)[0] + (i % 3 - 1) * 0.025, (i // 3 - 0.5) * 0.025,
+                     sc._cavity[1, 2] - sc.bean_radius]
+            sc._spawn(env.data, i, env.data.xpos[sc.scoop] + rot @ local, np.zeros(3))
         mujoco.mj_kinematics(env.model, env.data)
         sc.start_record(env.data, env.grasp)
         sc.record["bin_touched_by"] = touched
@@ -579,6 +590,10 @@ def test_scoop_success_needs_the_beans_the_end_point_and_the_bin_untouched(envs)
         ok, info = sc.success(env.data, env.grasp)
         assert ok is expected, (n, shift, touched, spilled, info)
         assert info["beans_in_scoop"] == n
+        if quat is tilted:
+            assert info["bowl_tilt_deg"] > c["max_tilt_deg"] and info["bowl_out_of_bin"]
+        if shift[2] < 0:
+            assert not info["bowl_out_of_bin"]
 
 def test_plate_success_fails_once_the_rack_was_knocked(envs):
     env = envs["platestandingtolying"]

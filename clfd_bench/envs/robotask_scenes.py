@@ -49,8 +49,10 @@ end state alone:
   turn the mat as they fold it).
 - scoop (held: a scoop, by its handle, welded, never let go; RoboTasks9): the scoop never
   slips, and neither it nor the robot ever touches the bin (at any step); at the end (1 s after
-  the trajectory) its bowl's centre is within `end_radius` of where demo j ends it and at least
-  `min_beans` beans are in the bowl; at most `max_spilled` beans ever landed outside the bin.
+  the trajectory) the bowl is out of the bin (its lowest point above the rim), its opening
+  within `max_tilt_deg` of facing up, at least `min_beans` beans in it, and its centre within
+  `end_radius` of where demo j ends it; at most `max_spilled` beans ever landed outside the
+  bin.
   The bin's contents are grain sites that become beans as the bowl takes them in over its lip
   (`ScoopScene`).
 
@@ -1150,8 +1152,9 @@ class PouringScene(Scene):
 
 class ScoopScene(Scene):
     """A scoop held by its handle, a bin of beans on a stand. Success: see the module docstring
-    (the scoop never slips and never touches the bin; it ends where demo j ends it, holding at
-    least `min_beans` beans; at most `max_spilled` ever landed outside the bin).
+    (the scoop never slips and never touches the bin; it ends out of the bin, level, near where
+    demo j ends it, holding at least `min_beans` beans; at most `max_spilled` ever landed
+    outside the bin).
 
     The beans: the bin's contents up to `[scene] surface_z` are not simulated body by body (a
     bed deep enough for the demos' 8 cm spread of dip depth would take hundreds of spheres).
@@ -1445,13 +1448,19 @@ class ScoopScene(Scene):
         centre = self.bowl_centre(data)
         offset = float(np.linalg.norm(centre - ends[self.demo if len(ends) > 1 else 0]))
         touched = rec["bin_touched_by"]
+        rot = data.xmat[self.scoop].reshape(3, 3)
+        # the opening faces -z of the scoop: its tilt from straight up
+        tilt = float(np.degrees(np.arccos(np.clip(-rot[2, 2], -1.0, 1.0))))
+        lowest = float(data.xpos[self.scoop][2] + (self._outer_corners @ rot[2]).min())
+        out = lowest > self._rim
         ok = (held and touched is None and beans >= int(c["min_beans"])
-              and rec["spilled"] <= int(c["max_spilled"])
+              and rec["spilled"] <= int(c["max_spilled"]) and out
+              and tilt <= float(c.get("max_tilt_deg", 180.0))
               and offset <= float(c.get("end_radius", np.inf)))
         return bool(ok), {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
                           "beans_scooped": int(rec["scooped"]), "end_offset": offset,
-                          "bowl_centre": [float(v) for v in centre],
-                          "bin_touched_by": touched}
+                          "bowl_centre": [float(v) for v in centre], "bowl_tilt_deg": tilt,
+                          "bowl_out_of_bin": bool(out), "bin_touched_by": touched}
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()
