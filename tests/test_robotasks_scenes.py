@@ -553,18 +553,15 @@ def test_scoop_success_needs_the_beans_the_end_point_and_the_bin_untouched(envs)
     env = envs["scoop"]
     sc = env.scene
     c = env.spec_doc["success"]
-    end = np.asarray(env.spec_doc["scene"]["end_centre"][0])
+    home = np.asarray(env.spec_doc["scene"]["end_grip"][0])
     env.reset(options={"demo": 0})
     up = _quat_about([1.0, 0.0, 0.0], np.pi)
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, up)
-    home = end - rot.reshape(3, 3) @ sc._cavity.mean(0)
     set_free_pose(env.model, env.data, sc.scoop, home, up)
     mujoco.mj_kinematics(env.model, env.data)
     tilted = np.empty(4)  # the opening turned past max_tilt_deg from up
     mujoco.mju_mulQuat(tilted, up, _quat_about([1.0, 0.0, 0.0],
                                                np.radians(c["max_tilt_deg"] + 5.0)))
-    low = [0.0, 0.0, env.spec_doc["scene"]["bin_rim_z"] - end[2]]  # the bowl down in the bin
+    low = [0.0, 0.0, env.spec_doc["scene"]["bin_rim_z"] - home[2]]  # the bowl down in the bin
     for n, shift, touched, spilled, quat, expected in [
             (c["min_beans"], [0.0, 0.0, 0.0], None, 0, up, True),
             (c["min_beans"] - 1, [0.0, 0.0, 0.0], None, 0, up, False),

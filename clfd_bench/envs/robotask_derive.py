@@ -1064,15 +1064,15 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
         raise RuntimeError("scoop: the bin did not clear the demos in 12 steps")
     doc = _doc("scoop", design, scene, loose, starts)
     infos = _replay_demos(task, doc)
-    ends = np.array([i["bowl_centre"] for i in infos])
+    ends = np.array([i["grip_point"] for i in infos])
     beans = np.array([i["beans_in_scoop"] for i in infos])
     spilled = np.array([i["beans_spilled"] for i in infos])
     scooped = np.array([i["beans_scooped"] for i in infos])
-    scene["end_centre"] = ends
+    scene["end_grip"] = ends
     # Replayed 2x slower and 1.5x faster (the same path): how much that moves the end and
     # changes the scoopful.
     timed = [_replay_demos(task, doc, time_scale=f) for f in (2.0, 1.0 / 1.5)]
-    jitter = np.array([[np.linalg.norm(np.subtract(i["bowl_centre"], e)) for i, e in
+    jitter = np.array([[np.linalg.norm(np.subtract(i["grip_point"], e)) for i, e in
                         zip(infos_f, ends, strict=True)] for infos_f in timed])
     timed_beans = np.array([[i["beans_in_scoop"] for i in infos_f] for infos_f in timed])
     radius = max(d["end_radius"], d["jitter_factor"] * float(jitter.max()))
@@ -1105,8 +1105,9 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
                 "n_beans": "design: the pool of beans the scoop can hold at once (free "
                            "spheres; the bin's contents are grain sites, see "
                            "clfd_bench.envs.robotask_scenes.ScoopScene)",
-                "end_centre": "per demo j: where the bowl's centre is (world, m) at the end of "
-                              "demo j replayed (+ 1 s holding)"},
+                "end_grip": "per demo j: where the scoop's grasp point (on its handle, between "
+                            "the pads) is (world, m) at the end of demo j replayed (+ 1 s "
+                            "holding)"},
             "success": {
                 "min_beans": "beans that must be in the scoop at the end (after 1 s holding "
                              "still). Procedure: the demos replayed as they are, 2x slower and "
@@ -1118,13 +1119,15 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
                 "max_tilt_deg": "at the end the bowl's opening must face up within this "
                                 "(deg). Procedure: the demos replayed ([derived] "
                                 "end_bowl_tilt_deg): the largest + 10 deg",
-                "end_radius": "the bowl must end within this distance (m) of where demo j "
-                              "ends it ([scene] end_centre). Procedure: the end has no physical "
-                              "target (no container; at the end the bowl must be out of the "
-                              "bin, level and full), so only nearer than a 5 cm drift less the "
-                              "1.5 cm margin, or 1.3 x the largest shift the demos replayed 2x "
-                              "slower and 1.5x faster show ([derived] end_jitter_*) if that is "
-                              "larger"},
+                "end_radius": "the scoop's grasp point must end within this distance (m) of "
+                              "where demo j ends it ([scene] end_grip; at the hand, not the "
+                              "bowl 25 cm out, where orientation errors, judged by "
+                              "max_tilt_deg, would count again). Procedure: the end has no "
+                              "physical target (no container; at the end the bowl must be out "
+                              "of the bin, level and full), so only nearer than a 5 cm drift "
+                              "less the 1.5 cm margin, or 1.3 x the largest shift the demos "
+                              "replayed 2x slower and 1.5x faster show ([derived] "
+                              "end_jitter_*) if that is larger"},
         },
     }
 

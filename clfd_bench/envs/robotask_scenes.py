@@ -50,9 +50,9 @@ end state alone:
 - scoop (held: a scoop, by its handle, welded, never let go; RoboTasks9): the scoop never
   slips, and neither it nor the robot ever touches the bin (at any step); at the end (1 s after
   the trajectory) the bowl is out of the bin (its lowest point above the rim), its opening
-  within `max_tilt_deg` of facing up, at least `min_beans` beans in it, and its centre within
-  `end_radius` of where demo j ends it; at most `max_spilled` beans ever landed outside the
-  bin.
+  within `max_tilt_deg` of facing up, at least `min_beans` beans in it, and the scoop's grasp
+  point within `end_radius` of where demo j ends it; at most `max_spilled` beans ever landed
+  outside the bin.
   The bin's contents are grain sites that become beans as the bowl takes them in over its lip
   (`ScoopScene`).
 
@@ -1443,10 +1443,11 @@ class ScoopScene(Scene):
         c, rec = self.success_cfg, self.record
         held = grasp.held(data)
         beans = self.beans_in_bowl(data)
-        ends = np.asarray(self.scene.get("end_centre", [[0.0, 0.0, 0.0]]),
+        ends = np.asarray(self.scene.get("end_grip", [[0.0, 0.0, 0.0]]),
                           dtype=float).reshape(-1, 3)
+        grip = data.xpos[self.scoop]  # the scoop's origin: the grasp point on its handle
+        offset = float(np.linalg.norm(grip - ends[self.demo if len(ends) > 1 else 0]))
         centre = self.bowl_centre(data)
-        offset = float(np.linalg.norm(centre - ends[self.demo if len(ends) > 1 else 0]))
         touched = rec["bin_touched_by"]
         rot = data.xmat[self.scoop].reshape(3, 3)
         # the opening faces -z of the scoop: its tilt from straight up
@@ -1459,6 +1460,7 @@ class ScoopScene(Scene):
               and offset <= float(c.get("end_radius", np.inf)))
         return bool(ok), {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
                           "beans_scooped": int(rec["scooped"]), "end_offset": offset,
+                          "grip_point": [float(v) for v in grip],
                           "bowl_centre": [float(v) for v in centre], "bowl_tilt_deg": tilt,
                           "bowl_out_of_bin": bool(out), "bin_touched_by": touched}
 

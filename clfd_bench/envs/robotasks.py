@@ -283,10 +283,12 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   flat on the table with at least {min_turned} of the {n_strips} strips of the near half turned
   over onto it in one layer, and the mat is turned on the table as demo j leaves it (its
   heading within {heading_deg:g} deg of demo j's).
-- scoop: the scoop never slipped and neither it nor the robot ever touched the bin; it ends
-  with its bowl's centre within {scoop_end_cm:.1f} cm of where demo j ends it and at least
-  {scoop_min_beans} beans in the bowl (1 s after the trajectory, held still); at most
-  {scoop_max_spilled} ever landed outside the bin.
+- scoop: the scoop never slipped and neither it nor the robot ever touched the bin; at the end
+  (1 s after the trajectory, held still) the bowl is out of the bin, its opening within
+  {scoop_tilt:.0f} deg of facing up, at least {scoop_min_beans} beans in it, and the scoop's
+  grasp point within {scoop_end_cm:.1f} cm of where demo j ends it (the end has no physical
+  target: nearer than a 5 cm drift less the 1.5 cm margin); at most {scoop_max_spilled} ever
+  landed outside the bin.
 
 ## Episode End
 
@@ -316,8 +318,8 @@ attached), `release_reason` ("opened" / "slipped" / None), `slip_cause`, `grip_l
 `rack_in_place`; `object_tilt_deg`, `object_height`, `on_shelf`, `obstacle_touched_by`,
 `object_max_turn_deg`, `object_release_turn_deg`; `release_fold_offset`, `release_offset`,
 `fold_end_y`, `turned_strips`, `mat_folded`, `mat_heading_deg`, `mat_heading_error_deg`,
-`max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`, `bowl_centre`,
-`bin_touched_by`).
+`max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`,
+`grip_point`, `bowl_centre`, `bowl_tilt_deg`, `bowl_out_of_bin`, `bin_touched_by`).
 
 ## Version History
 
@@ -412,6 +414,7 @@ def _doc_numbers() -> dict[str, Any]:
         "scoop_end_cm": 100 * scoop["success"]["end_radius"],
         "scoop_min_beans": scoop["success"]["min_beans"],
         "scoop_max_spilled": scoop["success"]["max_spilled"],
+        "scoop_tilt": scoop["success"]["max_tilt_deg"],
     }
 
 
