@@ -1,6 +1,6 @@
 """A contact sheet of rollout videos: a few frames of each video, one row per video.
 
-    python eval/video_sheet.py videos/rt9/*.mp4 --out docs/figures/robotasks9_hn_fast.png
+    python eval/video_sheet.py videos/rt9/*task*.mp4 --out docs/figures/robotasks9_hn_fast.png
 
 Reads the mp4 files `clfd-bench video` writes, takes the frames at `--at` (fractions of each
 video's length) and writes one PNG: a row per video (titled with its file name), a column per
@@ -20,6 +20,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--at", default="0.02,0.45,0.98",
                         help="moments, fractions of each video's length (default 0.02,0.45,0.98)")
     parser.add_argument("--out", type=Path, required=True, help="the PNG to write")
+    parser.add_argument("--dpi", type=int, default=80, help="resolution (default 80)")
     args = parser.parse_args(argv)
     missing = [str(v) for v in args.videos if not v.is_file()]
     if missing:
@@ -39,8 +40,10 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = []
     for path in args.videos:
-        frames = list(iio.get_reader(str(path)))
-        rows.append([frames[min(len(frames) - 1, int(a * (len(frames) - 1)))] for a in moments])
+        reader = iio.get_reader(str(path))
+        n = reader.count_frames()
+        rows.append([reader.get_data(min(n - 1, int(a * (n - 1)))) for a in moments])
+        reader.close()
     h, w = rows[0][0].shape[:2]
     fig, axes = plt.subplots(len(rows), len(moments), squeeze=False,
                              figsize=(2.6 * len(moments) * w / h, 2.6 * len(rows)))
@@ -56,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
                 ax.set_title(f"{100 * moments[c]:.0f} % of the video", fontsize=9)
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=80)
+    fig.savefig(args.out, dpi=args.dpi)
     print(f"wrote {args.out}")
     return 0
 

@@ -662,3 +662,17 @@ def test_a_pickled_env_keeps_holding_its_prop_like_the_original():
         assert i1["grip_load_max"] == i2["grip_load_max"]
     env.close()
     clone.close()
+
+
+def test_a_video_frames_the_scoop_not_the_beans_waiting_under_the_floor(envs):
+    """Beans in the pool are 10 m under the room's floor, without contacts: a video's camera
+    frames the props in the scene (it framed them too, and showed a dot of a robot)."""
+    from clfd_bench.viz.video import _object_points
+
+    env = envs["scoop"]
+    env.reset(options={"demo": 0})
+    pts = _object_points(env)
+    assert len(pts) == 1 and pts[:, 2].min() > 0.0  # the scoop alone
+    env.scene._spawn(env.data, 0, np.array([0.4, -0.3, 0.3]), np.zeros(3))
+    mujoco.mj_kinematics(env.model, env.data)
+    assert len(_object_points(env)) == 2

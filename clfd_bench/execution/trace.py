@@ -89,15 +89,19 @@ def tool_path(base, trajectory: np.ndarray | Sequence[np.ndarray]) -> np.ndarray
     return out
 
 
-def object_bodies(model) -> dict[str, int]:
+def object_bodies(model, present_only: bool = False) -> dict[str, int]:
     """Movable bodies outside the robot: name -> body id (bodies with joints whose kinematic
-    tree is not the robot's)."""
+    tree is not the robot's). With `present_only`, only those that can collide now: a body
+    whose contacts are all off, as Scoop's beans waiting in their pool 10 m under the floor, is
+    not in the scene."""
     import mujoco
 
     robot = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "link0")
     robot_root = model.body_rootid[robot] if robot >= 0 else -1
     out = {}
     for b in range(1, model.nbody):
+        if present_only and not (model.body_contype[b] or model.body_conaffinity[b]):
+            continue
         if model.body_jntnum[b] > 0 and model.body_rootid[b] != robot_root:
             out[mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"] = b
     return out

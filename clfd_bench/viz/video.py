@@ -198,7 +198,7 @@ def _object_points(base: Any) -> np.ndarray:
     """World positions [K, 3] of the movable bodies that are not the robot (props)."""
     from clfd_bench.execution.trace import object_bodies
 
-    ids = list(object_bodies(base.model).values())
+    ids = list(object_bodies(base.model, present_only=True).values())
     return np.array([base.data.xpos[i] for i in ids]).reshape(-1, 3)
 
 
