@@ -99,10 +99,11 @@ def test_every_dataset_task_has_an_env_id():
     for name in ("helloworld", "lasa"):
         for task in load_dataset(name).task_names:
             assert env_id_for(name, task) in gym.registry
-    for task in load_dataset("robotasks").task_names:
-        assert env_id_for("robotasks", task) in gym.registry
+    for name in ("robotasks", "robotasks9"):  # every RoboTasks9 task has a scene now
+        for task in load_dataset(name).task_names:
+            assert env_id_for(name, task) in gym.registry
     with pytest.raises(KeyError, match="tasks with an env"):
-        env_id_for("robotasks9", "scoop")
+        env_id_for("robotasks9", "juggling")
     with pytest.raises(ValueError, match="only letters, digits"):
         lasa_env_name("Multi Models")
 

@@ -1261,6 +1261,12 @@ class ScoopScene(Scene):
         self._prev: tuple[np.ndarray, np.ndarray] | None = None
         corners = np.stack(np.meshgrid(*self._outer.T, indexing="ij"), -1).reshape(-1, 3)
         self._outer_corners = corners
+        c = self.success_cfg
+        self._ends = np.asarray(s.get("end_grip", [[0.0, 0.0, 0.0]]), dtype=float).reshape(-1, 3)
+        self._cavity_mid = self._cavity.mean(0)
+        self._min_beans, self._max_spilled = int(c["min_beans"]), int(c["max_spilled"])
+        self._max_tilt = float(c.get("max_tilt_deg", 180.0))
+        self._end_radius = float(c.get("end_radius", np.inf))
         self._is_bin_geom = np.zeros(model.ngeom, dtype=bool)
         self._is_bin_geom[self.bin_geoms] = True
         self._is_bean_geom = np.zeros(model.ngeom, dtype=bool)
@@ -1325,8 +1331,7 @@ class ScoopScene(Scene):
 
     def bowl_centre(self, data: mujoco.MjData) -> np.ndarray:
         """[3] the bowl's centre (world): the middle of its cavity."""
-        mid = self._cavity.mean(0)
-        return data.xpos[self.scoop] + data.xmat[self.scoop].reshape(3, 3) @ mid
+        return data.xpos[self.scoop] + data.xmat[self.scoop].reshape(3, 3) @ self._cavity_mid
 
     # -- episode
     def reset(self, data: mujoco.MjData, demo: int, grasp: Grasp) -> None:
@@ -1440,28 +1445,26 @@ class ScoopScene(Scene):
         return axis == 2 and before[2] < lo[2]
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
-        c, rec = self.success_cfg, self.record
+        rec = self.record
         held = grasp.held(data)
         beans = self.beans_in_bowl(data)
-        ends = np.asarray(self.scene.get("end_grip", [[0.0, 0.0, 0.0]]),
-                          dtype=float).reshape(-1, 3)
         grip = data.xpos[self.scoop]  # the scoop's origin: the grasp point on its handle
-        offset = float(np.linalg.norm(grip - ends[self.demo if len(ends) > 1 else 0]))
-        centre = self.bowl_centre(data)
-        touched = rec["bin_touched_by"]
+        end = self._ends[self.demo if len(self._ends) > 1 else 0]
+        offset = math.dist(grip, end)
         rot = data.xmat[self.scoop].reshape(3, 3)
+        centre = grip + rot @ self._cavity_mid
+        touched = rec["bin_touched_by"]
         # the opening faces -z of the scoop: its tilt from straight up
-        tilt = float(np.degrees(np.arccos(np.clip(-rot[2, 2], -1.0, 1.0))))
-        lowest = float(data.xpos[self.scoop][2] + (self._outer_corners @ rot[2]).min())
+        tilt = math.degrees(math.acos(min(1.0, max(-1.0, -float(rot[2, 2])))))
+        lowest = float(grip[2] + (self._outer_corners @ rot[2]).min())
         out = lowest > self._rim
-        ok = (held and touched is None and beans >= int(c["min_beans"])
-              and rec["spilled"] <= int(c["max_spilled"]) and out
-              and tilt <= float(c.get("max_tilt_deg", 180.0))
-              and offset <= float(c.get("end_radius", np.inf)))
+        ok = (held and touched is None and beans >= self._min_beans
+              and rec["spilled"] <= self._max_spilled and out and tilt <= self._max_tilt
+              and offset <= self._end_radius)
         return bool(ok), {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
                           "beans_scooped": int(rec["scooped"]), "end_offset": offset,
-                          "grip_point": [float(v) for v in grip],
-                          "bowl_centre": [float(v) for v in centre], "bowl_tilt_deg": tilt,
+                          "grip_point": grip.tolist(),
+                          "bowl_centre": centre.tolist(), "bowl_tilt_deg": tilt,
                           "bowl_out_of_bin": bool(out), "bin_touched_by": touched}
 
     def scene_state(self) -> dict[str, Any]:
