@@ -7,7 +7,6 @@ runs one demo per family on every env). The motion-limit checks of `PandaEnv` ar
 from __future__ import annotations
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 import pytest
 
@@ -198,11 +197,10 @@ def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
 
 
 def _bumped(env, demo, height):
-    """Demo `demo` with its path raised by `height` (m) mid-way (a sine bump: the start and end
-    poses unchanged)."""
-    traj = env.unwrapped.demo_trajectory(demo).copy()
-    traj[:, 2] += height * np.sin(np.linspace(0.0, np.pi, len(traj)))
-    return traj
+    """Demo `demo` with its path raised by `height` (m) mid-way (start and end unchanged)."""
+    from clfd_bench.execution.task_variants import bumped
+
+    return bumped(height)(env.unwrapped.demo_trajectory(demo))
 
 
 def test_a_scoop_carried_over_the_beans_takes_none(envs):
@@ -221,15 +219,10 @@ def test_a_scoop_pushed_down_to_the_bins_floor_touches_it(envs):
 def test_beans_tipped_out_of_the_scoop_before_the_end_fail(envs):
     """The demo, but over its last quarter the hand rolls 120 deg about its x axis (the tool's
     direction): the bowl turns over and the beans fall out."""
+    from clfd_bench.execution.task_variants import rolled_at_the_end
+
     env = envs["scoop"]
-    traj = env.unwrapped.demo_trajectory(3).copy()
-    n = len(traj)
-    for t in range(3 * n // 4, n):
-        roll = np.radians(120.0) * min(1.0, (t - 3 * n // 4) / (n // 8))
-        q = np.empty(4)
-        mujoco.mju_mulQuat(q, traj[t, 3:], np.array([np.cos(roll / 2), np.sin(roll / 2), 0, 0]))
-        traj[t, 3:] = q
-    r = rollout(env, traj, demo=3)
+    r = rollout(env, rolled_at_the_end(120.0)(env.unwrapped.demo_trajectory(3)), demo=3)
     c = env.unwrapped.spec_doc["success"]
     assert not r.success and r.info["beans_scooped"] >= c["min_beans"]
     assert r.info["beans_in_scoop"] < c["min_beans"], r.info

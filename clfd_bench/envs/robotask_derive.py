@@ -1149,8 +1149,6 @@ def _mat_replays(task, doc: dict[str, Any], time_scale: float = 1.0) -> dict[str
     world then; after the settling `heading`, the far plate's heading (deg,
     `MatScene.heading_deg`), `turned`, the strips turned over onto the far half
     (`MatScene.turned_strips`), `root_shift`, the far plate's largest shift (m) and `success`."""
-    from clfd_bench.data.resample import resample
-
     env = RoboTaskEnv("matfolding", spec=doc, limits=None)
     n = len(task.positions)
     out = {"turn": np.zeros(n), "release_vector": np.full((n, 3), np.nan),
@@ -1158,11 +1156,7 @@ def _mat_replays(task, doc: dict[str, Any], time_scale: float = 1.0) -> dict[str
            "turned": np.zeros(n, dtype=int), "root_shift": np.zeros(n),
            "success": np.zeros(n, dtype=bool)}
     for j in range(n):
-        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
-        if time_scale != 1.0:
-            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
-        actions = env.trajectory_to_actions(traj)
-        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        actions = _demo_actions(env, task, j, time_scale=time_scale)
         env.reset(options={"demo": j, "horizon": len(actions)})
         for a in actions:
             env.step(a)
@@ -1326,8 +1320,15 @@ def _doc(task_name: str, design: dict[str, Any], scene: dict[str, Any],
     return doc
 
 
-def _demo_actions(env: RoboTaskEnv, task, j: int, settle_steps: int = 60) -> np.ndarray:
+def _demo_actions(env: RoboTaskEnv, task, j: int, settle_steps: int = 60,
+                  time_scale: float = 1.0) -> np.ndarray:
+    """Demo j's actions [T, 8] (its duration scaled by `time_scale`: positions interpolated,
+    orientations slerped), then `settle_steps` of `env.settle_actions`."""
+    from clfd_bench.data.resample import resample
+
     traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
+    if time_scale != 1.0:
+        traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
     actions = env.trajectory_to_actions(traj)
     return np.concatenate([actions, env.settle_actions(actions[-1], settle_steps)])
 
@@ -1355,16 +1356,10 @@ def _replay_demos(task, doc: dict[str, Any], records: bool = False, time_scale: 
     of `doc` (no motion-limit checks: the scene alone), the demos' durations scaled by
     `time_scale` (positions interpolated, orientations slerped). With `records`, also the
     scene's episode records: (infos, records)."""
-    from clfd_bench.data.resample import resample
-
     env = RoboTaskEnv(doc["task"]["name"], spec=doc, limits=None)
     infos, recs = [], []
     for j in range(len(task.positions)):
-        traj = np.concatenate([task.positions[j], task.quaternions[j]], axis=1)
-        if time_scale != 1.0:
-            traj = resample(traj, int(round((len(traj) - 1) * time_scale)) + 1)
-        actions = env.trajectory_to_actions(traj)
-        actions = np.concatenate([actions, env.settle_actions(actions[-1], 60)])
+        actions = _demo_actions(env, task, j, time_scale=time_scale)
         env.reset(options={"demo": j, "horizon": len(actions)})
         for a in actions:
             env.step(a)

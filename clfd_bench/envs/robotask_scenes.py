@@ -251,6 +251,10 @@ class Scene:
         """(success, task info) from the episode's record and the current state."""
         raise NotImplementedError
 
+    def _demo_row(self, rows: np.ndarray) -> np.ndarray:
+        """Demo j's row of a per-demo reference [N, ...] (its only row when it has one)."""
+        return rows[self.demo if len(rows) > 1 else 0]
+
     def scene_state(self) -> dict[str, Any]:
         """Episode state beyond the physics state (for pickling)."""
         return {"demo": self.demo,
@@ -268,6 +272,24 @@ class Scene:
     def observation(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
         ids = self.object_ids
         return {"objects": np.concatenate([data.xpos[ids], data.xquat[ids]], axis=1)}
+
+
+def first_toucher(model: mujoco.MjModel, data: mujoco.MjData, targets: np.ndarray,
+                  ignore: np.ndarray) -> str | None:
+    """The body (name) of the first geom in contact (touching or penetrating) with a geom of
+    `targets`, skipping geoms of `ignore` (both boolean masks [ngeom]); None if there is none."""
+    if data.ncon == 0:
+        return None
+    g1, g2 = data.contact.geom1, data.contact.geom2
+    on = targets[g1] | targets[g2]
+    if not on.any():
+        return None
+    other = np.where(targets[g1], g2, g1)
+    hit = on & ~ignore[other] & (data.contact.dist <= 0.0)
+    if not hit.any():
+        return None
+    g = int(other[np.flatnonzero(hit)[0]])
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[g])
 
 
 def grasp_spec_from(g: dict[str, Any]) -> GraspSpec:
@@ -353,7 +375,7 @@ class OpenBoxScene(Scene):
         angle = self.lid_angle(data)
         need = np.atleast_1d(np.asarray(self.success_cfg["min_open_angle_deg"], dtype=float))
         self.record = {"max_held_angle": angle, "release_angle": None,
-                       "need": float(need[self.demo if len(need) > 1 else 0])}
+                       "need": float(self._demo_row(need))}
 
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
         if grasp.held(data):
@@ -440,7 +462,7 @@ class _PlaceScene(Scene):
         top = data.xpos[self.support_id][2]
         self.record["release_height"] = lowest_point(self.model, data, self.prop) - float(top)
         centre = np.asarray(self.scene["place_centre"], dtype=float).reshape(-1, 2)
-        centre = centre[self.demo if len(centre) > 1 else 0]
+        centre = self._demo_row(centre)
         self.record["release_offset"] = float(np.linalg.norm(self.prop_centre(data)[:2]
                                                              - centre))
 
@@ -749,6 +771,9 @@ class ObstacleScene(_PlaceScene):
     def bind(self, model: mujoco.MjModel) -> None:
         super().bind(model)
         self.obstacle_geom = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle_box")
+        self._is_obstacle = np.zeros(model.ngeom, dtype=bool)
+        self._is_obstacle[self.obstacle_geom] = True
+        self._is_world_geom = model.geom_bodyid == 0  # the table plane it stands on
         self._obstacle_top = float(self.scene["obstacle_top"])
         self._turn_sign = float(self.success_cfg.get("turn_sign", 1.0))
 
@@ -781,18 +806,9 @@ class ObstacleScene(_PlaceScene):
             beside = data.xipos[self.prop_id][2] < self._obstacle_top
             if beside and turned > rec["max_turn_deg"]:
                 rec["max_turn_deg"] = turned
-        if rec["obstacle_touched_by"] is not None or data.ncon == 0:
-            return
-        con = data.contact
-        g1, g2 = con.geom1, con.geom2
-        hit = ((g1 == self.obstacle_geom) | (g2 == self.obstacle_geom)) & (con.dist <= 0.0)
-        for k in np.flatnonzero(hit):
-            other = int(g2[k] if g1[k] == self.obstacle_geom else g1[k])
-            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY,
-                                     self.model.geom_bodyid[other])
-            if name != "world":  # the table plane is a world geom
-                self.record["obstacle_touched_by"] = name
-                return
+        if rec["obstacle_touched_by"] is None:
+            rec["obstacle_touched_by"] = first_toucher(self.model, data, self._is_obstacle,
+                                                       self._is_world_geom)
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
@@ -924,8 +940,7 @@ class MatScene(Scene):
     def _ref(self, key: str) -> np.ndarray:
         """Demo j's row of a per-demo `[scene]` reference."""
         ref = np.asarray(self.scene[key], dtype=float)
-        ref = ref.reshape(len(ref), -1)
-        return ref[self.demo if len(ref) > 1 else 0]
+        return self._demo_row(ref.reshape(len(ref), -1))
 
     def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
         self.record = {"max_root_shift": 0.0, "release_vector": None, "release_edge": None}
@@ -1133,7 +1148,7 @@ class PouringScene(Scene):
         count = self.record["pour_count"]
         if count == 0:
             return None
-        ref = self._pour_centres[self.demo if len(self._pour_centres) > 1 else 0]
+        ref = self._demo_row(self._pour_centres)
         return float(np.linalg.norm(self.record["pour_sum"] / count - ref))
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
@@ -1158,7 +1173,7 @@ class ScoopScene(Scene):
 
     The beans: the bin's contents up to `[scene] surface_z` are not simulated body by body (a
     bed deep enough for the demos' 8 cm spread of dip depth would take hundreds of spheres).
-    They are a lattice of grain sites, `2 * bean_radius + 1 mm` apart, filling the bin. A grain
+    They are a lattice of grain sites, `[scene] grain_spacing` apart, filling the bin. A grain
     becomes a bean (a free sphere from a pool of `n_beans`, which otherwise waits out of the
     scene, without contacts or weight) when the scoop's bowl sweeps it up: when its site passes
     into the bowl's cavity through the bowl's opening, not through a wall or the floor (a grain
@@ -1264,6 +1279,8 @@ class ScoopScene(Scene):
         c = self.success_cfg
         self._ends = np.asarray(s.get("end_grip", [[0.0, 0.0, 0.0]]), dtype=float).reshape(-1, 3)
         self._cavity_mid = self._cavity.mean(0)
+        #: the cavity and a bean radius past its opening: a heaped scoopful counts
+        self._heaped = self._cavity - [[0.0, 0.0, self.bean_radius], [0.0, 0.0, 0.0]]
         self._min_beans, self._max_spilled = int(c["min_beans"]), int(c["max_spilled"])
         self._max_tilt = float(c.get("max_tilt_deg", 180.0))
         self._end_radius = float(c.get("end_radius", np.inf))
@@ -1271,11 +1288,6 @@ class ScoopScene(Scene):
         self._is_bin_geom[self.bin_geoms] = True
         self._is_bean_geom = np.zeros(model.ngeom, dtype=bool)
         self._is_bean_geom[self.bean_geoms] = True
-
-    @property
-    def n_grains(self) -> int:
-        """Grain sites in the bin."""
-        return int(np.prod(self._shape))
 
     def _sites_near(self, poses: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         """[K, 3] lattice indices of the grains not yet taken within the bounding box of the
@@ -1325,9 +1337,7 @@ class ScoopScene(Scene):
         if not self._active.any():
             return 0
         local = self._local(data, data.xpos[self.bean_ids[self._active]])
-        box = self._cavity.copy()
-        box[0, 2] -= self.bean_radius
-        return int(np.count_nonzero(self._in_box(local, box)))
+        return int(np.count_nonzero(self._in_box(local, self._heaped)))
 
     def bowl_centre(self, data: mujoco.MjData) -> np.ndarray:
         """[3] the bowl's centre (world): the middle of its cavity."""
@@ -1417,16 +1427,9 @@ class ScoopScene(Scene):
                 rec["spilled"] += int(np.count_nonzero(out))
         if changed:
             mujoco.mj_kinematics(self.model, data)
-        if rec["bin_touched_by"] is None and data.ncon:
-            g1, g2 = data.contact.geom1, data.contact.geom2
-            on_bin = self._is_bin_geom[g1] | self._is_bin_geom[g2]
-            if on_bin.any():
-                other = np.where(self._is_bin_geom[g1], g2, g1)
-                hit = on_bin & ~self._is_bean_geom[other] & (data.contact.dist <= 0.0)
-                if hit.any():
-                    g = int(other[np.flatnonzero(hit)[0]])
-                    rec["bin_touched_by"] = mujoco.mj_id2name(
-                        self.model, mujoco.mjtObj.mjOBJ_BODY, self.model.geom_bodyid[g])
+        if rec["bin_touched_by"] is None:
+            rec["bin_touched_by"] = first_toucher(self.model, data, self._is_bin_geom,
+                                                  self._is_bean_geom)
 
     def _through_opening(self, before: np.ndarray, after: np.ndarray) -> bool:
         """Whether the segment `before` -> `after` (scoop frame) enters the cavity through its
@@ -1449,10 +1452,10 @@ class ScoopScene(Scene):
         held = grasp.held(data)
         beans = self.beans_in_bowl(data)
         grip = data.xpos[self.scoop]  # the scoop's origin: the grasp point on its handle
-        end = self._ends[self.demo if len(self._ends) > 1 else 0]
+        end = self._demo_row(self._ends)
         offset = math.dist(grip, end)
         rot = data.xmat[self.scoop].reshape(3, 3)
-        centre = grip + rot @ self._cavity_mid
+        centre = self.bowl_centre(data)
         touched = rec["bin_touched_by"]
         # the opening faces -z of the scoop: its tilt from straight up
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -float(rot[2, 2])))))
