@@ -690,27 +690,21 @@ def _tray_extent(task, name: str, body: str, axis: int, grasp: dict[str, Any], t
     (task `name`'s held prop) below `top` (world z) over the first `n_samples` of every demo:
     where the tray's walls must not be."""
     model, _ = _task_model(name)
-    pts_local = _surface_points(model, body)
+    pos, quat = task.positions[:, :n_samples], task.quaternions[:, :n_samples]
+    pts = _prop_points(pos, quat, grasp, _surface_points(model, body))
+    g = grasp_points(pos, quat)
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    g = grasp_points(task.positions[:, :n_samples], task.quaternions[:, :n_samples])
+    rot = np.empty(9)
     for n in range(len(g)):
-        origin, ex, ey = None, None, None
-        for t in range(n_samples):
-            p, q = prop_pose(g[n, t], task.quaternions[n, t], grasp["prop_pos"],
-                             grasp["prop_quat"])
-            rot = np.empty(9)
-            mujoco.mju_quat2Mat(rot, q)
-            rot = rot.reshape(3, 3)
-            if origin is None:
-                yaw = np.arctan2(rot[1, axis], rot[0, axis])
-                ex = np.array([np.cos(yaw), np.sin(yaw), 0.0])
-                ey = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-                origin = g[n, 0]
-            pts = p + pts_local @ rot.T
-            near = pts[pts[:, 2] <= top] - origin
-            if len(near):
-                xy = np.stack([near @ ex, near @ ey], axis=1)
-                lo, hi = np.minimum(lo, xy.min(0)), np.maximum(hi, xy.max(0))
+        _, q = prop_pose(g[n, 0], quat[n, 0], grasp["prop_pos"], grasp["prop_quat"])
+        mujoco.mju_quat2Mat(rot, q)
+        yaw = np.arctan2(rot[3 + axis], rot[axis])  # the prop's axis at the start, seen from above
+        ex = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        ey = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        near = pts[n][pts[n][..., 2] <= top] - g[n, 0]
+        if len(near):
+            xy = np.stack([near @ ex, near @ ey], axis=1)
+            lo, hi = np.minimum(lo, xy.min(0)), np.maximum(hi, xy.max(0))
     return np.array([lo[0], hi[0], lo[1], hi[1]])
 
 
@@ -985,41 +979,35 @@ def _derive_obstacle(task, design, starts) -> dict[str, Any]:
     }
 
 
+def _prop_points(positions: np.ndarray, quaternions: np.ndarray, grasp: dict[str, Any],
+                 local: np.ndarray, every: int = 1) -> np.ndarray:
+    """[N, T', P, 3] the held prop's points `local` [P, 3] (prop frame) in the world at the hand
+    poses [N, T, 3|4] (every `every`-th sample), the prop held at `grasp["prop_pos"]`,
+    `grasp["prop_quat"]` in the grasp-site frame."""
+    g = grasp_points(positions, quaternions)
+    steps = range(0, g.shape[1], every)
+    out = np.empty((len(g), len(steps), len(local), 3))
+    rot = np.empty(9)
+    for n in range(len(g)):
+        for i, t in enumerate(steps):
+            p, q = prop_pose(g[n, t], quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
+            mujoco.mju_quat2Mat(rot, q)
+            out[n, i] = p + local @ rot.reshape(3, 3).T
+    return out
+
+
 def _extent_below(name: str, body: str, positions: np.ndarray, quaternions: np.ndarray,
                   grasp: dict[str, Any], top: float, every: int = 2) -> np.ndarray:
     """[4] the world extent (x_lo, x_hi, y_lo, y_hi) of the surface of `body` (task `name`'s
     held prop) below `top` (world z) at the hand poses [N, T, 3|4] (every `every`-th sample);
     NaN where nothing is below."""
     model, _ = _task_model(name)
-    pts_local = _surface_points(model, body)
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    g = grasp_points(positions, quaternions)
-    rot = np.empty(9)
-    for n in range(len(g)):
-        for t in range(0, g.shape[1], every):
-            p, q = prop_pose(g[n, t], quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
-            mujoco.mju_quat2Mat(rot, q)
-            pts = p + pts_local @ rot.reshape(3, 3).T
-            near = pts[pts[:, 2] <= top]
-            if len(near):
-                lo, hi = np.minimum(lo, near[:, :2].min(0)), np.maximum(hi, near[:, :2].max(0))
-    out = np.array([lo[0], hi[0], lo[1], hi[1]])
-    return np.where(np.isfinite(out), out, np.nan)
-
-
-def _prop_points_lowest(positions: np.ndarray, quaternions: np.ndarray, grasp: dict[str, Any],
-                        local: np.ndarray) -> np.ndarray:
-    """[N] the lowest world z that any of the held prop's points `local` [P, 3] (prop frame)
-    reaches along each demo (hand poses [N, T, 3|4])."""
-    g = grasp_points(positions, quaternions)
-    out = np.full(len(g), np.inf)
-    rot = np.empty(9)
-    for n in range(len(g)):
-        for t in range(g.shape[1]):
-            p, q = prop_pose(g[n, t], quaternions[n, t], grasp["prop_pos"], grasp["prop_quat"])
-            mujoco.mju_quat2Mat(rot, q)
-            out[n] = min(out[n], float((p + local @ rot.reshape(3, 3).T)[:, 2].min()))
-    return out
+    pts = _prop_points(positions, quaternions, grasp, _surface_points(model, body), every)
+    near = pts[pts[..., 2] <= top]
+    if not len(near):
+        return np.full(4, np.nan)
+    lo, hi = near[:, :2].min(0), near[:, :2].max(0)
+    return np.array([lo[0], hi[0], lo[1], hi[1]])
 
 
 _BIN_GEOMS = ("bin_floor", "bin_wall_back", "bin_wall_front", "bin_wall_right", "bin_wall_left")
@@ -1034,7 +1022,7 @@ def _derive_scoop(task, design, starts) -> dict[str, Any]:
     # the bowl's lip (the edge of its opening) at its lowest per demo: beans flow in over it
     lo, hi = np.asarray(d["bowl_cavity"], dtype=float)
     lip = np.array([[x, y, lo[2]] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
-    lips = _prop_points_lowest(task.positions, task.quaternions, grasp, lip)
+    lips = _prop_points(task.positions, task.quaternions, grasp, lip)[..., 2].min((1, 2))
     surface = float(lips.max() + d["dip"])
     rim = surface + float(d["rim_above"])
     floor = float(dips.min() - c)
