@@ -143,6 +143,26 @@ def _visual_box(parent: mujoco.MjsBody, name: str, size, pos, rgba) -> None:
     g.mass = 0.0
 
 
+def _box_walls(spec: mujoco.MjSpec, prefix: str, faces: tuple[float, float, float, float],
+               bottom: float, height: float, half_thick: float
+               ) -> tuple[float, float, float, float]:
+    """Sizes the four walls `<prefix>_wall_{back,front,right,left}` of a tray or bin: inner
+    faces at `faces` (x0, x1, y0, y1, in its body's frame), from z `bottom` up by `height`,
+    `2 * half_thick` thick; back and front span the corners. Returns the inside's centre and
+    half sizes (cx, cy, hx, hy)."""
+    x0, x1, y0, y1 = faces
+    w = half_thick
+    cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
+    zc, hz = bottom + height / 2, height / 2
+    for side, pos, size in (("back", [x0 - w, cy, zc], [w, hy + 2 * w, hz]),
+                            ("front", [x1 + w, cy, zc], [w, hy + 2 * w, hz]),
+                            ("right", [cx, y0 - w, zc], [hx, w, hz]),
+                            ("left", [cx, y1 + w, zc], [hx, w, hz])):
+        g = spec.geom(f"{prefix}_wall_{side}")
+        g.pos, g.size = pos, size
+    return cx, cy, hx, hy
+
+
 def add_table(spec: mujoco.MjSpec, table_z: float,
               xy: tuple[float, float, float, float] = DEFAULT_TABLE_XY) -> None:
     """Makes the Menagerie floor the table's collision surface at `table_z` (hidden, geom group
@@ -613,16 +633,8 @@ class _TrayPlaceScene(_PlaceScene):
         t = float(s.get("tray_base_thickness", 0.005))
         w = float(s.get("tray_wall_thickness", 0.008)) / 2
         height = float(s["tray_wall_height"])
-        x0, x1, y0, y1 = (float(v) for v in s["tray_walls"])
-        cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
-        zc, hz = t + height / 2, height / 2
-        for side, pos, size in (
-                ("back", [x0 - w, cy, zc], [w, hy + 2 * w, hz]),
-                ("front", [x1 + w, cy, zc], [w, hy + 2 * w, hz]),
-                ("right", [cx, y0 - w, zc], [hx, w, hz]),
-                ("left", [cx, y1 + w, zc], [hx, w, hz])):
-            g = spec.geom(f"{self.tray}_wall_{side}")
-            g.pos, g.size = pos, size
+        faces = tuple(float(v) for v in s["tray_walls"])
+        cx, cy, hx, hy = _box_walls(spec, self.tray, faces, t, height, w)
         base = spec.geom(f"{self.tray}_base")
         base.size = [hx + 2 * w, hy + 2 * w, t / 2]
         base.pos = [cx, cy, t / 2]
@@ -1200,13 +1212,7 @@ class ScoopScene(Scene):
         t = float(s.get("bin_wall_thickness", 0.008)) / 2
         cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
         spec.body("bin").pos = [cx, cy, floor]
-        hz = (rim - floor) / 2
-        for side, pos, size in (("back", [-hx - t, 0, hz], [t, hy + 2 * t, hz]),
-                                ("front", [hx + t, 0, hz], [t, hy + 2 * t, hz]),
-                                ("right", [0, -hy - t, hz], [hx, t, hz]),
-                                ("left", [0, hy + t, hz], [hx, t, hz])):
-            g = spec.geom(f"bin_wall_{side}")
-            g.pos, g.size = pos, size
+        _box_walls(spec, "bin", (-hx, hx, -hy, hy), 0.0, rim - floor, t)
         g = spec.geom("bin_floor")
         g.size, g.pos = [hx + 2 * t, hy + 2 * t, 0.004], [0.0, 0.0, -0.004]
         g = spec.geom("material")
