@@ -102,21 +102,27 @@ def _resolve(name: str) -> str:
     env_id = name if "/" in name else f"{NAMESPACE}/{name}"
     if env_id in ids:
         return env_id
-    namespace, base, version = parse_env_id(env_id)
-    if namespace == NAMESPACE and version is None:
+    try:
+        namespace, base, version = parse_env_id(env_id)
+    except gym.error.Error as exc:  # not an id at all
+        raise _unknown(name, str(exc)) from None
+    if namespace != NAMESPACE:
+        raise _unknown(name, f"clfd-bench envs are in the namespace {NAMESPACE!r}, not "
+                             f"{namespace!r}")
+    if version is None:
         versions = [i for i in ids if parse_env_id(i)[1] == base]
         if versions:
             return max(versions, key=lambda i: parse_env_id(i)[2])
-    if namespace != NAMESPACE:
-        reason = f"clfd-bench envs are in the namespace {NAMESPACE!r}, not {namespace!r}"
-    else:
-        try:
-            gym.spec(env_id)
-            reason = "not a clfd-bench env"
-        except gym.error.Error as exc:
-            reason = str(exc)
-    raise UnknownEnvError(f"no clfd-bench env {name!r} ({reason}); valid names (with or "
-                          f"without '{NAMESPACE}/'): {', '.join(names())}")
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as exc:  # the registry's reason: no such name, version, ...
+        raise _unknown(name, str(exc)) from None
+    raise _unknown(name, "registered, but not by clfd-bench")
+
+
+def _unknown(name: str, reason: str) -> UnknownEnvError:
+    return UnknownEnvError(f"no clfd-bench env {name!r} ({reason}); valid names (with or "
+                           f"without '{NAMESPACE}/'): {', '.join(names())}")
 
 
 def box_spec(space: spaces.Space, name: str) -> specs.Array:

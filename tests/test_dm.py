@@ -215,6 +215,11 @@ def test_unknown_name_lists_the_valid_names():
     # An old version: the registry's message names the current one.
     with pytest.raises(dm.UnknownEnvError, match=r"Please use `clfd/PlateStacking-v2`"):
         dm.load("PlateStacking-v0")
+    # Not an id at all, or another namespace: the same error.
+    with pytest.raises(dm.UnknownEnvError, match=r"Malformed environment ID"):
+        dm.load("plate stacking")
+    with pytest.raises(dm.UnknownEnvError, match=r"in the namespace 'clfd', not 'gym'"):
+        dm.load("gym/PlateStacking-v2")
     # With or without the namespace, without a version: the current version.
     assert type(dm.load("clfd/PlateStacking-v2").gym_env).__name__ == "RoboTaskEnv"
     assert dm.load("LASA-Angle").gym_env.task_name == "Angle"
