@@ -28,7 +28,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     # CLFD_TORCH_INDEX (e.g. https://download.pytorch.org/whl/cpu) picks a CPU-only build.
     python -m pip install --quiet "torch==2.13.0" ${CLFD_TORCH_INDEX:+--index-url "$CLFD_TORCH_INDEX"}
   fi
-  python -m pip install --quiet -e ".[dev,dist]"
+  python -m pip install --quiet -e ".[dev,dist,dm]"
   touch "$stamp"
 fi
 
