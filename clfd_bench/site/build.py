@@ -303,6 +303,27 @@ def _run_page(run: _Run, site: Path) -> dict[str, Any]:
     return ctx
 
 
+def _wall_rows(wall: list[_Run], order: list[str], runs: list[_Run], tasks: list[str],
+               errors: dict[str, list[str]]) -> list[dict[str, Any]]:
+    """The wall's rows in the table's order; a row without a finished run says why."""
+    by_label = {r.label: r for r in wall}
+    rows = []
+    for label in order:
+        run = by_label.get(label)
+        if run is not None:
+            tiles = {t["name"]: t for t in run.tiles}
+            rows.append({"label": label, "name": run.name, "page": run.page,
+                         "cells": [tiles.get(name) for name in tasks], "missing": None})
+            continue
+        mine = [r for r in runs if r.label == label]
+        why = "; ".join(errors.get(label) or [
+            f"{r.name}: {r.status}" + (f" ({r.error})" if r.error else "") for r in mine
+        ]) or "no run"
+        rows.append({"label": label, "name": None, "page": mine[0].page if mine else None,
+                     "cells": [], "missing": f"no finished run to show ({why})"})
+    return rows
+
+
 # ----------------------------------------------------------------------------- build
 def _environment():
     import jinja2
@@ -437,9 +458,8 @@ def build_site(results_dir: str | Path, out: str | Path, *, videos: bool = True,
         paper_note=" ".join(n for n in notes if n),
         figures=[f.relative_to(out).as_posix() for f in figures],
         downloads=[d.relative_to(out).as_posix() for d in downloads],
-        wall=[{"label": r.label, "name": r.name, "page": r.page,
-               "cells": [{t["name"]: t for t in r.tiles}.get(name) for name in tasks]}
-              for r in wall],
+        wall=_wall_rows(wall, order, runs, tasks,
+                        {str(r["method"]): list(r.get("errors") or []) for r in doc["rows"]}),
         wall_tasks=tasks, wall_style=style, demo=demo, videos=videos,
         runs=[{"label": r.label, "name": r.name, "page": r.page, "status": r.status,
                "error": r.error} for r in runs])

@@ -44,8 +44,7 @@ def plot_r_matrices(matrices: Mapping[str, Sequence[Sequence[float | None]]],
     m = max(len(r) for r in matrices.values())
     size = max(3.0, 0.45 * m + 1.6)
     fig, axes = plt.subplots(1, n, figsize=(size * n + 0.8, size + 0.4), squeeze=False)
-    cmap = matplotlib.colormaps["RdYlGn"].copy()
-    cmap.set_bad("#f0f0f0")
+    cmap = matplotlib.colormaps["RdYlGn"].with_extremes(bad="#f0f0f0")
     image = None
     for ax, (key, rows) in zip(axes[0], matrices.items(), strict=True):
         grid = np.full((m, m), np.nan)
