@@ -373,9 +373,10 @@ def build_site(results_dir: str | Path, out: str | Path, *, videos: bool = True,
     results_dir, out = Path(results_dir), Path(out)
     style = {**WALL_STYLE, **(style or {})}
     doc = read_leaderboard(results_dir)
-    if out.resolve() == results_dir.resolve():
-        from clfd_bench.harness.validate import InputError
+    from clfd_bench.harness.validate import InputError, check_out_dir
 
+    check_out_dir(out)
+    if out.resolve() == results_dir.resolve():
         raise InputError(f"--out {out} is the results folder itself; give the site a folder "
                          "of its own (e.g. RESULTS_DIR/site)")
     meta = doc["meta"]

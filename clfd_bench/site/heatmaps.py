@@ -19,6 +19,12 @@ def _title(key: str, thresholds: Mapping[str, float]) -> str:
     return f"trajectory ({key.upper()}" + (f" ≤ {thr:g})" if thr is not None else ")")
 
 
+def _cell(value: float) -> str:
+    """0, 1, or two decimals without the leading zero (.62): fits a small cell."""
+    text = f"{value:.2f}"
+    return {"0.00": "0", "1.00": "1"}.get(text, text.lstrip("0"))
+
+
 def plot_r_matrices(matrices: Mapping[str, Sequence[Sequence[float | None]]],
                     task_names: Sequence[str], path: str | os.PathLike[str], *,
                     thresholds: Mapping[str, float] | None = None, title: str = "") -> Path:
@@ -43,7 +49,8 @@ def plot_r_matrices(matrices: Mapping[str, Sequence[Sequence[float | None]]],
     n = len(matrices)
     m = max(len(r) for r in matrices.values())
     size = max(3.0, 0.45 * m + 1.6)
-    fig, axes = plt.subplots(1, n, figsize=(size * n + 0.8, size + 0.4), squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(size * n + 0.8, size + 0.4), squeeze=False,
+                             layout="constrained")
     cmap = matplotlib.colormaps["RdYlGn"].with_extremes(bad="#f0f0f0")
     image = None
     for ax, (key, rows) in zip(axes[0], matrices.items(), strict=True):
@@ -56,8 +63,7 @@ def plot_r_matrices(matrices: Mapping[str, Sequence[Sequence[float | None]]],
         for i in range(m):
             for j in range(m):
                 if np.isfinite(grid[i, j]):
-                    ax.text(j, i, f"{grid[i, j]:.2f}".lstrip("0") if grid[i, j] < 1 else "1",
-                            ha="center", va="center", fontsize=7)
+                    ax.text(j, i, _cell(grid[i, j]), ha="center", va="center", fontsize=7)
         names = [str(t) for t in task_names[:m]]
         ax.set_xticks(range(m), names, fontsize=7, rotation=90 if max(map(len, names)) > 3
                       else 0)
