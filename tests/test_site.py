@@ -87,7 +87,7 @@ def test_every_referenced_file_exists_and_decodes(site):
     for video in videos:
         frames = iio.imread(video)
         assert frames.shape[1:] == (STYLE["height"], STYLE["width"], 3) and len(frames) > 1
-    assert not [p for p in out.rglob(".*")], "temporary files left"
+    assert [p.name for p in out.rglob(".*")] == [".lock"], "temporary files left"
 
 
 def test_rebuild_reuses_videos_and_keeps_the_pages(site, results):
@@ -95,6 +95,44 @@ def test_rebuild_reuses_videos_and_keeps_the_pages(site, results):
     again = build_site(results, out, style=STYLE)
     assert again.videos_rendered == 0 and again.videos_reused == len(METHODS) * TASKS
     assert not again.video_errors
+
+
+def test_killed_build_resumes_without_half_written_files(results, tmp_path):
+    """SIGKILL while a tile's video is being written: the next build removes the temporary
+    file, keeps the finished tiles and renders only the missing ones."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "site"
+    cmd = [sys.executable, "-m", "clfd_bench.cli.main", "site", str(results), "--out",
+           str(out), "--size", f"{STYLE['width']}x{STYLE['height']}", "--fps",
+           str(STYLE["fps"]), "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    try:
+        # Kill once one tile is finished and the next one is being written.
+        while time.monotonic() < deadline and proc.poll() is None:
+            done = [p for p in out.rglob("*.mp4") if not p.name.startswith(".")]
+            if done and list(out.rglob(".*.tmp.mp4")):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, f"the build ended before it was killed: {proc.stderr.read()}"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.stderr.close()
+    finished = {p for p in out.rglob("*.mp4") if not p.name.startswith(".")}
+    assert finished and list(out.rglob(".*.tmp.mp4"))
+    for video in finished:  # every visible video is whole
+        assert len(iio.imread(video)) > 1
+    again = build_site(results, out, style=STYLE)
+    assert again.videos_reused == len(finished)
+    assert again.videos_rendered == len(METHODS) * TASKS - len(finished)
+    assert [p.name for p in out.rglob(".*")] == [".lock"]
 
 
 def test_wall_outcomes_are_the_runs_executions(site, results):

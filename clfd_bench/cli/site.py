@@ -42,9 +42,15 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"clfd-bench site: error: {exc}", file=sys.stderr)
         return 2
-    result = build_site(args.results_dir, out, videos=not args.no_videos, demo=args.demo,
-                        style=style, workers=args.workers,
-                        log=None if args.quiet else (lambda line: print(line, flush=True)))
+    from clfd_bench.runs import RunLockedError
+
+    try:
+        result = build_site(args.results_dir, out, videos=not args.no_videos, demo=args.demo,
+                            style=style, workers=args.workers,
+                            log=None if args.quiet else (lambda line: print(line, flush=True)))
+    except RunLockedError as exc:
+        print(f"clfd-bench site: error: {exc}", file=sys.stderr)
+        return 2
     for run, task, note in result.video_errors:
         print(f"clfd-bench site: warning: {run} task {task}: {note}", file=sys.stderr)
     print(result.index)

@@ -33,7 +33,14 @@ from pathlib import Path
 from typing import Any
 
 from clfd_bench.io import atomic_write_bytes, atomic_write_text
-from clfd_bench.site.wall import WALL_STYLE, TileJob, TileResult, render_tiles, tile_key
+from clfd_bench.site.wall import (
+    WALL_STYLE,
+    TileJob,
+    TileResult,
+    existing_video,
+    render_tiles,
+    tile_key,
+)
 
 __all__ = ["WALL_STYLE", "SiteResult", "build_site"]
 
@@ -154,12 +161,11 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             "errors": row.get("errors") or [], "pages": pages.get(method, []),
         })
     groups = []
-    for key, head, group, _ in _COLUMNS:
+    for _, _, group, _ in _COLUMNS:
         if groups and groups[-1]["key"] == group:
             groups[-1]["span"] += 1
         else:
             groups.append({"key": group, "title": _GROUPS[group], "span": 1})
-        del key, head
     return {"groups": groups, "columns": [{"key": k, "head": h, "group": g}
                                           for k, h, g, _ in _COLUMNS],
             "rows": rows, "kinds": kinds}
@@ -341,6 +347,14 @@ def _static(name: str) -> bytes:
     return files("clfd_bench.site").joinpath("static", name).read_bytes()
 
 
+def _remove_temp_files(out: Path) -> None:
+    """Temporary files a killed build left (``.<name>.<random>.tmp*``; only while holding the
+    site's lock)."""
+    for tmp in out.rglob(".*.tmp*"):
+        if tmp.is_file():
+            tmp.unlink(missing_ok=True)
+
+
 def build_site(results_dir: str | Path, out: str | Path, *, videos: bool = True,
                demo: int = 0, style: Mapping[str, Any] | None = None,
                workers: int = 1, log: Any = None) -> SiteResult:
@@ -357,28 +371,38 @@ def build_site(results_dir: str | Path, out: str | Path, *, videos: bool = True,
         log: a callable taking one line of progress (default: none).
 
     Raises:
-        InputError: ``results_dir`` is not a results folder (the message says what to run).
+        InputError: ``results_dir`` is not a results folder (the message says what to run),
+            or ``out`` is unusable.
+        RunLockedError: another build writes into ``out``.
     """
-    from clfd_bench.leaderboard.report import (
-        leaderboard_figures,
-        paper_values,
-        read_leaderboard,
-    )
+    from clfd_bench.runs import exclusive
+
+    results_dir, out = Path(results_dir), Path(out)
+    from clfd_bench.harness.validate import InputError, check_out_dir
+    from clfd_bench.leaderboard.report import read_leaderboard
+
+    doc = read_leaderboard(results_dir)  # before anything is created
+    check_out_dir(out)
+    if out.resolve() == results_dir.resolve():
+        raise InputError(f"--out {out} is the results folder itself; give the site a folder "
+                         "of its own (e.g. RESULTS_DIR/site)")
+    with exclusive(out, "clfd-bench site"):
+        _remove_temp_files(out)
+        return _build(results_dir, out, doc, videos=videos, demo=demo, style=style,
+                      workers=workers, log=log)
+
+
+def _build(results_dir: Path, out: Path, doc: dict[str, Any], *, videos: bool, demo: int,
+           style: Mapping[str, Any] | None, workers: int, log: Any) -> SiteResult:
+    """:func:`build_site` once the inputs are checked and the site's folder is held."""
+    from clfd_bench.leaderboard.report import leaderboard_figures, paper_values
     from clfd_bench.node_variants import node_label
     from clfd_bench.progress import progress
     from clfd_bench.version import __version__
 
     start = time.perf_counter()
     say = log or (lambda line: None)
-    results_dir, out = Path(results_dir), Path(out)
     style = {**WALL_STYLE, **(style or {})}
-    doc = read_leaderboard(results_dir)
-    from clfd_bench.harness.validate import InputError, check_out_dir
-
-    check_out_dir(out)
-    if out.resolve() == results_dir.resolve():
-        raise InputError(f"--out {out} is the results folder itself; give the site a folder "
-                         "of its own (e.g. RESULTS_DIR/site)")
     meta = doc["meta"]
     runs = _load_runs(results_dir, doc)
     order = [str(r["method"]) for r in doc["rows"]]
@@ -402,7 +426,8 @@ def build_site(results_dir: str | Path, out: str | Path, *, videos: bool = True,
     result = SiteResult(out / "index.html", [])
     if jobs:
         t_videos = time.perf_counter()
-        bar = progress(total=len(jobs), desc="site videos", unit="video")
+        missing = sum(existing_video(j.out_dir, j.task) is None for j in jobs)
+        bar = progress(total=missing, desc="site videos", unit="video")
 
         def on_done(r: TileResult) -> None:
             bar.update(1)
