@@ -144,8 +144,9 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             median, q1, q3 = metric.get("median"), metric.get("q1"), metric.get("q3")
             text = ("—" if median is None and key in (row.get("not_provided") or [])
                     else _fmt(median, key))
+            n = len(metric.get("values") or [])
             tip = (f"median {_fmt(median, key)}, IQR [{_fmt(q1, key)}, {_fmt(q3, key)}] over "
-                   f"{len(metric.get('values') or [])} runs") if median is not None else ""
+                   f"{n} run{'s' if n != 1 else ''}") if median is not None else ""
             cells.append({
                 "text": text, "sort": "" if median is None else f"{median:.9g}", "tip": tip,
                 "group": group,
