@@ -160,6 +160,15 @@ def test_not_a_results_dir_says_what_to_run(tmp_path, capsys):
     assert not (tmp_path / "site").exists()
 
 
+def test_bad_demo_is_refused_before_anything_is_written(results, tmp_path, capsys):
+    from clfd_bench.cli.main import main
+
+    assert main(["site", str(results), "--out", str(tmp_path / "site"), "--demo", "8"]) == 2
+    err = capsys.readouterr().err
+    assert "--demo 8: helloworld/" in err and "has demos 0..7" in err
+    assert not (tmp_path / "site").exists()
+
+
 def test_paper_values_are_the_papers_table():
     from clfd_bench.metrics.paper_numbers import cl_table
 

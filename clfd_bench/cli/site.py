@@ -8,7 +8,7 @@ figures; a video wall: the last learned model of each method executing every tas
 tiles marked with their reason) and one page per run (R matrices as heat maps, config,
 provenance). Plain files with relative links: open ``index.html`` from disk or put the
 folder on any static host. Videos already rendered by an earlier build are reused, so an
-interrupted build resumes; rendering is the long part (~5 s per tile on 2 CPU cores).
+interrupted build resumes; rendering is the long part (~4 s per tile on 2 CPU cores).
 """
 
 from __future__ import annotations

@@ -411,6 +411,15 @@ def _build(results_dir: Path, out: Path, doc: dict[str, Any], *, videos: bool, d
     for run in runs:
         pages.setdefault(run.label, []).append((run.name, run.page))
 
+    # The video wall: the last learned model of each row's run, every task.
+    wall = _wall_runs(runs, order)
+    for run in wall:
+        first = run.saved.execution(0)
+        if first is not None and not 0 <= demo < len(first.success):
+            from clfd_bench.harness.validate import InputError
+
+            raise InputError(f"--demo {demo}: {run.name} has demos 0..{len(first.success) - 1}")
+
     # Figures and tables, copied so the site stands alone.
     figures = [_copy(p, out / "figures" / p.name) for p in leaderboard_figures(results_dir, doc)]
     downloads = []
@@ -420,8 +429,6 @@ def _build(results_dir: Path, out: Path, doc: dict[str, Any], *, videos: bool, d
     for name in _STATIC:
         atomic_write_bytes(out / name, _static(name))
 
-    # The video wall: the last learned model of each row's run, every task.
-    wall = _wall_runs(runs, order)
     jobs = [job for run in wall for job in _tile_jobs(out, run, demo, style)] if videos else []
     tile_results: dict[tuple[str, int], TileResult] = {}
     result = SiteResult(out / "index.html", [])
