@@ -287,6 +287,13 @@ class RunDir:
         np.savez(buf, **{f"task_{j}": np.asarray(p) for j, p in enumerate(predictions)})
         atomic_write_bytes(self.predictions_path(after_task), buf.getvalue())
 
+    def predictions_sha256(self, after_task: int) -> str | None:
+        """The hex sha256 of ``predictions/after_task_{i}.npz`` (None when there is none)."""
+        from clfd_bench.io import sha256_file
+
+        path = self.predictions_path(after_task)
+        return sha256_file(path) if path.is_file() else None
+
     def load_predictions(self, after_task: int) -> dict[int, np.ndarray]:
         """The predictions after learning task ``after_task``: task ``j`` (j <= after_task)
         -> ``[N, T, D]`` float64, data units.

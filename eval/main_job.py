@@ -2,9 +2,11 @@
 
 HelloWorld (7 letters), all seven CL methods, the ``fast`` profile, seed 0, task order 0,
 every prediction also executed on the simulated Panda; then a video of the robot writing
-"hello world" with the letters HN learned. Writes into ``results/`` (or ``--out``):
-``leaderboard.md/.csv/.json``, the PNG figures, ``runs/`` and ``videos/``. Running it again
-skips what is finished (a killed job resumes). About 12–20 minutes on 2 cores.
+"hello world" with the letters HN learned; last, the static results site (``clfd-bench
+site``), whose ``index.html`` path it prints. Writes into ``results/`` (or ``--out``):
+``leaderboard.md/.csv/.json``, the PNG figures, ``runs/``, ``videos/`` and ``site/``. Running
+it again skips what is finished (a killed job resumes, the site's videos included). About
+15–23 minutes on 2 cores (the site's 49 videos ~3 of them).
 """
 
 from __future__ import annotations
@@ -44,9 +46,16 @@ def main() -> int:
         print("[main job] rendering 'hello world' written with HN's learned letters", flush=True)
         video = render_text_video(hn.run_dir(out), demo=0, out_dir=out / "videos",
                                   style=VideoStyle(fps=8.0))
+    from clfd_bench.site import build_site
+
+    print("[main job] writing the results site (video wall: every method's last model, every "
+          "task)", flush=True)
+    site = build_site(out, out / "site", workers=args.workers,
+                      log=lambda line: print(line, flush=True))
     print(f"[main job] done in {time.perf_counter() - start:.0f} s: {out / 'leaderboard.md'}, "
-          f"figures in {out}/, video {video}")
-    return 1 if result.failed else 0
+          f"figures in {out}/, video {video}, site {site.seconds:.0f} s")
+    print(site.index.resolve())
+    return 1 if result.failed or site.video_errors else 0
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ from clfd_bench.version import __version__
 __all__ = ["build_parser", "main"]
 
 COMMANDS: tuple[str, ...] = (
-    "data", "train", "evaluate", "score", "leaderboard", "paper", "replay", "video",
+    "data", "train", "evaluate", "score", "leaderboard", "paper", "replay", "video", "site",
 )  # fmt: skip
 """Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
 

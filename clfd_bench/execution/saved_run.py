@@ -13,7 +13,35 @@ import numpy as np
 
 from clfd_bench.runs import RunDir
 
-__all__ = ["SavedRun", "load_run", "load_run_predictions"]
+__all__ = ["SavedRun", "TaskExecution", "load_run", "load_run_predictions"]
+
+#: ``results.json`` ``sim`` keys that hold one value per evaluation point (not provenance).
+_SIM_POINT_KEYS = ("tracking_error", "failure_reason", "failure_kind")
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskExecution:
+    """How one task's predictions after one learned task fared when executed, per demo.
+
+    Attributes:
+        after_task: the learned task after which the predictions were made.
+        task: the executed task's index; name: its name.
+        success: per demo, whether the execution succeeded.
+        reasons, kinds: per demo, why it failed and the failure's kind
+            (:data:`clfd_bench.execution.execute.FAILURE_KINDS`); None on success.
+    """
+
+    after_task: int
+    task: int
+    name: str
+    success: list[bool]
+    reasons: list[str | None]
+    kinds: list[str | None]
+
+    @property
+    def rate(self) -> float:
+        """The fraction of demos whose execution succeeded."""
+        return sum(self.success) / len(self.success) if self.success else float("nan")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +77,58 @@ class SavedRun:
             raise ValueError(f"{self.path}: results.json tasks {self.task_names} differ from "
                              f"{self.dataset} order {self.order} ({list(ds.task_names)})")
         return [np.asarray(ds.tasks[j].demos) for j in range(self.num_learned)]
+
+    @property
+    def executed(self) -> bool:
+        """Whether the run's predictions were executed in simulation (``success`` present)."""
+        return bool(self.results.get("success"))
+
+    def accuracy_matrices(self) -> dict[str, list[list[float | None]]]:
+        """The run's R matrices, ``R[i][j]`` = accuracy on task ``j`` after learning task
+        ``i`` (None above the diagonal): one per trajectory metric with a threshold (e.g.
+        ``dtw``) and ``execution`` (success rate in simulation) when the run executed."""
+        out = {str(k): v for k, v in (self.results.get("accuracy") or {}).items()
+               if isinstance(v, list)}
+        if isinstance(self.results.get("sim_accuracy"), list):
+            out["execution"] = self.results["sim_accuracy"]
+        return out
+
+    def execution(self, task: int, after_task: int | None = None) -> TaskExecution | None:
+        """How task ``task``'s predictions after learning ``after_task`` (default: the last
+        learned task) fared in simulation; None when they were not executed (no simulation,
+        or a task without an env)."""
+        i = self.num_learned - 1 if after_task is None else after_task
+        if not 0 <= task <= i < self.num_learned:
+            raise ValueError(f"{self.path}: no predictions of task {task} after task {i} "
+                             f"(learned {self.num_learned})")
+        try:
+            success = self.results["success"][i][task]
+        except (KeyError, IndexError, TypeError):
+            return None
+        if success is None:
+            return None
+        sim = self.results.get("sim") or {}
+
+        def per_demo(key: str) -> list:
+            try:
+                values = sim[key][i][task]
+            except (KeyError, IndexError, TypeError):
+                values = None
+            return list(values) if values is not None else [None] * len(success)
+
+        return TaskExecution(i, task, self.task_names[task], [bool(v) for v in success],
+                             per_demo("failure_reason"), per_demo("failure_kind"))
+
+    def provenance(self) -> dict[str, dict[str, Any]]:
+        """What the run records about how it was made: ``training`` (package versions,
+        dataset files and their sha256, seed, CPU) and, when executed, ``execution`` (the
+        simulator's fingerprint and versions, env ids, when it was evaluated, rollout counts),
+        without the per-point tables."""
+        out = {"training": dict(self.results.get("provenance") or {})}
+        sim = self.results.get("sim")
+        if isinstance(sim, Mapping):
+            out["execution"] = {k: v for k, v in sim.items() if k not in _SIM_POINT_KEYS}
+        return out
 
 
 def load_run(run_dir: str | Path) -> SavedRun:

@@ -36,6 +36,11 @@ unchanged and the line says why no paper table matches.
 The ``.csv`` and ``.json`` rows carry ``paper_rank`` and ``paper_cl_score`` (empty / null
 when no paper table matches); the ``.json`` also has the comparison under ``"paper"``.
 
+Reading a leaderboard back (the static site, :mod:`clfd_bench.site`) goes through this module
+too: :func:`read_leaderboard` (``leaderboard.json``), :func:`leaderboard_runs` (the run
+directories behind its rows), :func:`leaderboard_figures` and :func:`paper_values` (the
+matching paper table's numbers, every column, per method).
+
 Runs put in with ``--include`` (e.g. predictions scored elsewhere, ``clfd-bench score``) get a
 row under their method label; a cell their run could not fill (no model size, training time
 or stored samples given) shows "—" (``null`` and ``not_provided`` in the ``.json``), never a
@@ -58,8 +63,9 @@ from clfd_bench.leaderboard.entries import ENTRIES
 from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.node_variants import node_label
 
-__all__ = ["COLUMNS", "NOT_PROVIDED", "TIE", "PaperRanking", "paper_ranking", "rank",
-           "write_tables"]
+__all__ = ["COLUMNS", "LEADERBOARD_JSON", "NOT_PROVIDED", "TIE", "LeaderboardRun",
+           "PaperRanking", "leaderboard_figures", "leaderboard_runs", "paper_ranking",
+           "paper_values", "rank", "read_leaderboard", "write_tables"]
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("CL_score", "CL_score"),
@@ -75,6 +81,10 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 )
 """(key in MethodRow.values, column header), in table order."""
 
+
+LEADERBOARD_JSON = "leaderboard.json"
+"""The leaderboard's machine-readable file in its output folder."""
+_SCHEMA = 1
 
 TIE = 0.02
 """A swap of two methods whose CL_scores differ by at most this (ours or the paper's) is a tie."""
@@ -391,11 +401,11 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
     if paper.label and any(row.values.get("exec_CL_score") for row in ranked):
         paper.executed = paper_ranking(ranked, meta, key="exec_CL_score")
     out.mkdir(parents=True, exist_ok=True)
-    md, cs, js = out / "leaderboard.md", out / "leaderboard.csv", out / "leaderboard.json"
+    md, cs, js = out / "leaderboard.md", out / "leaderboard.csv", out / LEADERBOARD_JSON
     atomic_write_text(md, _markdown(ranked, meta, paper))
     atomic_write_text(cs, _csv(ranked, paper))
     payload = {
-        "schema_version": 1,
+        "schema_version": _SCHEMA,
         "meta": meta,
         "paper": paper.to_dict(),
         "rows": [
@@ -424,3 +434,100 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
     }
     atomic_write_json(js, payload)
     return [md, cs, js]
+
+
+# ----------------------------------------------------------------------------- reading back
+_RUN_IT = ("`clfd-bench leaderboard --dataset ... --out DIR` or `bash run.sh main` (which "
+           "writes results/)")
+
+
+def read_leaderboard(out: str | Path) -> dict[str, Any]:
+    """The ``leaderboard.json`` a leaderboard wrote into ``out`` (see :func:`write_tables`).
+
+    Raises:
+        InputError: ``out`` is not a folder, has no ``leaderboard.json``, or holds one this
+            version cannot read (the message says what to run).
+    """
+    import json
+
+    from clfd_bench.harness.validate import InputError
+
+    out = Path(out)
+    path = out / LEADERBOARD_JSON
+    if not out.is_dir():
+        raise InputError(f"{out} is not a folder; give the output folder of {_RUN_IT}")
+    if not path.is_file():
+        raise InputError(f"{out} is not a results folder: it has no {LEADERBOARD_JSON}; "
+                         f"make one with {_RUN_IT}")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise InputError(f"{path} is not valid JSON ({exc}); run the leaderboard again to "
+                         "rewrite it") from None
+    if (not isinstance(doc, dict) or doc.get("schema_version") != _SCHEMA
+            or not isinstance(doc.get("rows"), list) or not isinstance(doc.get("meta"), dict)):
+        raise InputError(f"{path} is not a leaderboard of schema {_SCHEMA} (rows, meta); run "
+                         "the leaderboard again with this version to rewrite it")
+    return doc
+
+
+@dataclass(frozen=True)
+class LeaderboardRun:
+    """A run directory behind a leaderboard row.
+
+    Attributes:
+        label: the row (method or entry name, lower case as in ``--methods``).
+        name: the run's name (its path below ``runs/``, or the included folder).
+        path: the run directory.
+        status: ``done``, ``failed``, ``partial`` or ``missing`` when the leaderboard was
+            written; ``included`` for a run put in with ``--include``.
+        seed, order: the grid point (None for an included run).
+    """
+
+    label: str
+    name: str
+    path: Path
+    status: str
+    seed: int | None = None
+    order: int | None = None
+
+
+def leaderboard_runs(out: str | Path, doc: dict[str, Any]) -> list[LeaderboardRun]:
+    """The runs of a leaderboard read with :func:`read_leaderboard`, in its grid's order
+    (method, order, seed), then the included ones. Run directories are found from the grid
+    (:func:`clfd_bench.leaderboard.grid.make_grid`), as the leaderboard placed them."""
+    from clfd_bench.leaderboard.grid import make_grid
+
+    out = Path(out)
+    meta = doc["meta"]
+    statuses = meta.get("runs") or {}
+    specs = make_grid(meta["dataset"], list(meta["methods"]), meta["profile"],
+                      list(meta["seeds"]), list(meta["orders"]), meta.get("node", "t"),
+                      meta.get("tasks"), bool(meta.get("sim", True)))
+    runs = [LeaderboardRun(s.label, s.name, s.run_dir(out), str(statuses.get(s.name, "missing")),
+                           s.seed, s.order) for s in specs]
+    for inc in meta.get("included") or []:
+        path = Path(inc["path"])
+        runs.append(LeaderboardRun(str(inc["method"]), str(path), path, "included"))
+    return runs
+
+
+def leaderboard_figures(out: str | Path, doc: dict[str, Any]) -> list[Path]:
+    """The leaderboard's figures that exist in ``out`` (found by file name: the paths in
+    ``meta.figures`` are as the leaderboard was called, possibly relative to another folder)."""
+    out = Path(out)
+    found = [out / Path(f).name for f in doc["meta"].get("figures") or []]
+    return [p for p in found if p.is_file()]
+
+
+def paper_values(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """The numbers of the paper's CL table matching the leaderboard (every column of
+    :data:`clfd_bench.metrics.paper_numbers.CL_COLUMNS`), per method in lower case; empty
+    when no paper table matches (``doc["paper"]["reason"]`` says why)."""
+    from clfd_bench.metrics.paper_numbers import cl_table
+
+    paper = doc.get("paper") or {}
+    if not paper.get("table") or not paper.get("dataset") or not paper.get("variant"):
+        return {}
+    table = cl_table(paper["dataset"], paper["variant"])
+    return {m.lower(): dict(values) for m, values in table.items()}
