@@ -59,7 +59,7 @@ from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.node_variants import node_label
 
 __all__ = ["COLUMNS", "NOT_PROVIDED", "TIE", "PaperRanking", "paper_ranking", "rank",
-           "write_tables"]
+           "read_tables", "write_tables"]
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("CL_score", "CL_score"),
@@ -424,3 +424,19 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
     }
     atomic_write_json(js, payload)
     return [md, cs, js]
+
+
+def read_tables(out: Path) -> dict[str, Any]:
+    """The ``leaderboard.json`` that :func:`write_tables` wrote into ``out`` (its ``meta``
+    names the grid: dataset, methods, profile, seeds, orders, node, tasks, sim).
+
+    Raises:
+        FileNotFoundError: ``out`` holds no leaderboard (the message says so).
+    """
+    import json
+
+    path = Path(out) / "leaderboard.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found: {out} is not the output folder of "
+                                "`clfd-bench leaderboard` (or of the main job)")
+    return json.loads(path.read_text(encoding="utf-8"))
