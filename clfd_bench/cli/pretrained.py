@@ -65,7 +65,7 @@ def _get(args: argparse.Namespace) -> int:
 
     try:
         out = get(args.name, args.out, force=args.force)
-    except PretrainedError as exc:
+    except (PretrainedError, OSError) as exc:  # OSError: e.g. --out not writable, disk full
         print(f"clfd-bench pretrained get: error: {exc}", file=sys.stderr)
         return 2
     print(f"results: {out}")

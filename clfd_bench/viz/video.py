@@ -843,7 +843,7 @@ def render_comparison_video(run_dirs: Sequence[str | os.PathLike[str]], task: in
                 "after each run's last learned task")
             legend = _legend((tw, th), [f"{dataset}: task {j} '{name}'", f"demo {demo}, {learned}",
                                         "orange: prediction", "green: demonstration",
-                                        "blue: the tool's path"])
+                                        "blue: the tool's path (writing: its ink)"])
         _compose(tiles, out, style, rows, cols, (tw, th), legend, iio)
     return out
 
