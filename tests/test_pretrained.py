@@ -87,6 +87,8 @@ def test_video_renders_from_the_bundle_without_training(hw, tmp_path, capsys):
                  "--size", "128x72"])
     assert code == 0, capsys.readouterr().err
     (path,) = capsys.readouterr().out.split()
+    # Named after the method too: every method's run folder is called fast_nodet_o0_s0.
+    assert Path(path).name == "hn_fast_nodet_o0_s0_task0_h_demo0.mp4"
     assert iio.imread(path).shape[1:] == (72, 128, 3)
 
 

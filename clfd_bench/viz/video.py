@@ -562,6 +562,15 @@ def run_caption(run: Any, what: str, demo: int) -> str:
     return " · ".join(parts)
 
 
+def _video_stem(run: Any) -> str:
+    """A run's videos' file-name stem: its directory's name, prefixed by its method when the
+    name does not start with it, so the runs of a leaderboard (one name per method folder)
+    do not overwrite each other's videos in one folder."""
+    name = _safe(run.path.resolve().name)
+    method = _safe(run.method.rsplit(":", 1)[-1]) if run.method else ""
+    return name if not method or name.startswith(method) else f"{method}_{name}"
+
+
 def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
@@ -587,7 +596,9 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
 
     Returns:
         The written files: ``{run}_task{j}_{name}_demo{d}.mp4`` per task, then
-        ``{run}_all_tasks_demo{d}.mp4`` and ``{run}_text_demo{d}.mp4`` when made.
+        ``{run}_all_tasks_demo{d}.mp4`` and ``{run}_text_demo{d}.mp4`` when made; ``{run}``
+        is the run directory's name, prefixed by its method when it does not start with it
+        (a leaderboard's runs are all called e.g. ``fast_nodet_o0_s0``: ``hn_fast_nodet_o0_s0``).
     """
     from clfd_bench.envs.registration import env_id_for
     from clfd_bench.execution.env_pool import get_env
@@ -607,7 +618,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
     n_demos = min(len(preds[j]) for j in selected)
     if not 0 <= demo < n_demos:
         raise ValueError(f"demo {demo} out of range: the run predicted demos 0..{n_demos - 1}")
-    run = _safe(run_dir.resolve().name)
+    run = _video_stem(saved)
     logger = None
     if rerun_path is not None:
         from clfd_bench.viz.rerun_log import RolloutLogger
@@ -674,7 +685,7 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
         raise ValueError(f"{run.path} has no learned task yet; nothing to render")
     preds = load_run_predictions(run.path, run.num_learned - 1)
     demos = dict(enumerate(run.demos()))
-    return _render_text(run, _safe(run.path.resolve().name), Path(out_dir), run.learned,
+    return _render_text(run, _video_stem(run), Path(out_dir), run.learned,
                         preds, demos, demo, style or VideoStyle(), None)
 
 
