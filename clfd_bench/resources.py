@@ -1,4 +1,5 @@
-"""Where the project's non-code folders are: ``assets``, ``tasks``, ``baselines``, ``eval``.
+"""Where the project's non-code folders are: ``assets``, ``tasks``, ``baselines``, ``eval``,
+``pretrained`` (the shipped results bundles, :mod:`clfd_bench.pretrained`).
 
 In a source checkout (or an editable install) they are the top-level folders of the
 repository; in an installed wheel they ship inside the package as ``clfd_bench/_share/``.
@@ -11,7 +12,7 @@ from pathlib import Path
 
 __all__ = ["FOLDERS", "resource_path", "resource_root"]
 
-FOLDERS = ("assets", "tasks", "baselines", "eval")
+FOLDERS = ("assets", "tasks", "baselines", "eval", "pretrained")
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 

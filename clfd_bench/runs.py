@@ -62,6 +62,7 @@ __all__ = [
     "RunLockedError",
     "RunStatus",
     "exclusive",
+    "find_runs",
 ]
 
 RESULTS_FILE = "results.json"
@@ -154,6 +155,16 @@ def _remove_stale_temp_files(folder: Path) -> None:
                 tmp.unlink(missing_ok=True)
 
 
+def find_runs(root: str | os.PathLike[str]) -> list[RunDir]:
+    """The run directories under ``root`` (a results folder: ``runs/<dataset>/<method>/...``;
+    or a run directory itself): every folder holding a ``results.json``, sorted by path.
+    Hidden folders (a replaced run set aside, a staging copy) are skipped."""
+    root = Path(root)
+    found = [p.parent for p in root.rglob(RESULTS_FILE)
+             if not any(part.startswith(".") for part in p.parent.relative_to(root).parts)]
+    return [RunDir(p) for p in sorted(found)]
+
+
 class RunDir:
     """One run directory (see the module docstring for its files).
 
@@ -207,6 +218,16 @@ class RunDir:
     def entries(self) -> list[str]:
         """The names in the run directory, sorted (empty when it does not exist)."""
         return sorted(p.name for p in self.path.iterdir()) if self.exists() else []
+
+    def portable_files(self) -> list[Path]:
+        """The files that make up the run, for copying it elsewhere (a shipped bundle):
+        ``results.json``, ``checkpoint.pt``, kept checkpoints, every predictions file,
+        ``sim_cache.json`` and ``train.log``; not the lock, ``failed.json`` or temporary
+        files. Sorted; only those that exist."""
+        fixed = [self.results_path, self.checkpoint_path, self.cache_path, self.log_path]
+        kept = sorted((self.path / CHECKPOINTS_DIR).glob("after_task_*.pt"))
+        preds = sorted((self.path / PREDICTIONS_DIR).glob("after_task_*.npz"))
+        return sorted(p for p in [*fixed, *kept, *preds] if p.is_file())
 
     def lock(self, what: str) -> contextlib.AbstractContextManager[Path]:
         """Exclusive ownership of the run for a writer (:func:`exclusive`)."""

@@ -63,7 +63,8 @@ def test_collect_reads_the_simulator_files_again(tmp_path, monkeypatch):
 
     source = tmp_path / "sim_source.py"
     source.write_text("version 1")
-    monkeypatch.setattr("clfd_bench.execution.fingerprint._sim_files", lambda: iter([source]))
+    monkeypatch.setattr("clfd_bench.execution.fingerprint._sim_files",
+                        lambda: iter([("sim_source.py", source)]))
     sim_fingerprint.cache_clear()
     try:
         grid = tmp_path / "grid"

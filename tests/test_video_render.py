@@ -1,5 +1,7 @@
 """Videos: frames with the paths drawn in, mp4 files that decode with the expected frame
-counts, for one rollout and for a tiny trained run (tasks, all tasks, the HelloWorld text)."""
+counts, for one rollout and for a tiny trained run (tasks, all tasks, the HelloWorld text);
+captions that name the run's method and the outcome; the comparison of several runs on one
+task, a grid of tiles rendered at tile size."""
 
 from __future__ import annotations
 
@@ -11,11 +13,20 @@ import pytest
 
 from clfd_bench.data import load_dataset
 from clfd_bench.execution.env_pool import get_env
+from clfd_bench.execution.saved_run import load_run
+from clfd_bench.viz import video as video_mod
 from clfd_bench.viz.video import (
+    FAILURE_RGB,
+    SUCCESS_RGB,
     VideoStyle,
     VideoWriter,
+    comparison_grid,
+    frame_camera,
+    outcome_caption,
+    render_comparison_video,
     render_rollout,
     render_run_videos,
+    run_caption,
     text_for_letters,
 )
 
@@ -33,6 +44,109 @@ def tiny_run(tmp_path_factory):
     run_training(resolve_config("sg", "helloworld", "smoke", seed=0, tasks=2), out, threads=1,
                  log=None)
     return out
+
+
+@pytest.fixture(scope="module")
+def tiny_ft_run(tmp_path_factory):
+    """FT on HelloWorld's first two letters, smoke profile (a second method to compare)."""
+    from clfd_bench.harness.config import resolve_config
+    from clfd_bench.harness.protocol import run_training
+
+    out = tmp_path_factory.mktemp("run") / "ft_smoke"
+    run_training(resolve_config("ft", "helloworld", "smoke", seed=0, tasks=2), out, threads=1,
+                 log=None)
+    return out
+
+
+def test_default_size_is_1280x720_and_stays_an_option():
+    from clfd_bench.cli.main import build_parser
+
+    assert (VideoStyle().width, VideoStyle().height) == (1280, 720)
+    parser = build_parser()
+    assert parser.parse_args(["video", "r"]).size == (1280, 720)
+    assert parser.parse_args(["video", "r", "--size", "640x360"]).size == (640, 360)
+
+
+def test_frame_camera_fills_a_wide_frame_sideways():
+    """A row of points wider than tall: at 16:9 the camera comes closer than at 4:3 (it fits
+    the horizontal field of view, not the points' bounding sphere in the vertical one), and
+    every point projects inside the frame."""
+    pts = np.array([[0.5, -0.6, 0.2], [0.5, 0.6, 0.2], [0.5, 0.0, 0.4]])
+    wide, square = (frame_camera(pts, 180.0, -20.0, aspect=a, margin=1.0)
+                    for a in (16 / 9, 4 / 3))
+    assert wide.distance < square.distance
+    az, el = np.radians(180.0), np.radians(-20.0)
+    fwd = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    right = np.cross(fwd, [0, 0, 1])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    eye = np.array(wide.lookat) - wide.distance * fwd
+    rel = pts - eye
+    depth = rel @ fwd
+    tan_y = np.tan(np.radians(45.0) / 2)
+    assert np.all(np.abs(rel @ right) / depth <= tan_y * 16 / 9 + 1e-9)
+    assert np.all(np.abs(rel @ up) / depth <= tan_y + 1e-9)
+
+
+def test_caption_names_the_method_task_and_outcome(tiny_run):
+    """The caption comes from the run's config (SG); a rollout that fails (the letter 'e'
+    written in the 'h' env) closes on a red border with "failed (<kind>)" and the env's
+    reason, a success on a green one."""
+    run = load_run(tiny_run)
+    caption = run_caption(run, "task 0 'h'", 0)
+    assert caption == "SG · task 0 'h' · demo 0"
+    demos = load_dataset("helloworld").tasks
+    env = get_env("clfd/HelloWorld-h-v2")
+    frames: list[np.ndarray] = []
+    wrong = np.asarray(demos[1].demos)[0]  # an 'e'
+    result, count = render_rollout(env, wrong, 0, [frames.append], caption=caption, style=STYLE)
+    assert not result.success and count == len(frames)
+    text, border = outcome_caption(caption, result)
+    assert border == FAILURE_RGB
+    first, reason = text.split("\n")
+    assert first == f"SG · task 0 'h' · demo 0 · failed ({result.failure_kind})"
+    assert reason == result.failure_reason and reason
+    red = frames[-1][0, STYLE.width // 2].astype(int)
+    assert red[0] > 150 and red[1] < 100  # the held closing frames: red border
+    good = render_rollout(env, np.asarray(demos[0].demos)[0], 0, [], style=STYLE)[0]
+    assert outcome_caption(caption, good) == (f"{caption} · success", SUCCESS_RGB)
+
+
+def test_comparison_video_is_a_grid_of_tiles_one_per_run(tiny_run, tiny_ft_run, tmp_path,
+                                                         monkeypatch):
+    style = VideoStyle(width=192, height=108, fps=3.0, hold_s=1.0, max_segments=40)
+    rows, cols, tw, th = comparison_grid(3, style)
+    assert (rows, cols, tw, th) == (2, 2, 96, 54)
+    rendered: list[tuple[int, int, str]] = []
+    real = video_mod.render_rollout
+
+    def spy(env, trajectory, demo, sinks, **kw):
+        rendered.append((kw["style"].width, kw["style"].height, kw["caption"]))
+        return real(env, trajectory, demo, sinks, **kw)
+
+    monkeypatch.setattr(video_mod, "render_rollout", spy)
+    out = render_comparison_video([tiny_run, tiny_ft_run, tiny_run], task="e", demo=1,
+                                  out_path=tmp_path / "cmp.mp4", style=style)
+    # Each tile rendered at tile size (not the whole frame's, then shrunk), one per run.
+    assert rendered == [(96, 54, "SG · 'e'"), (96, 54, "FT · 'e'"), (96, 54, "SG · 'e'")]
+    video = iio.imread(out)
+    assert video.shape == (style.frames_for(1000 + 60), 108, 192, 3)
+    last = video[-1].astype(int)
+    for k in range(3):  # three tiles with the scene, each with its outcome border
+        r, c = divmod(k, cols)
+        cell = last[r * th:(r + 1) * th, c * tw:(c + 1) * tw]
+        assert cell.mean() > 40
+        edge = cell[1, tw // 2]
+        assert max(edge[0], edge[1]) > 150 and min(edge[0], edge[1]) < 110  # red or green
+    legend = last[th:, tw:]  # the empty cell: white text on black
+    assert legend.mean() < 40 and (legend > 200).all(axis=-1).sum() > 20
+    assert not list(tmp_path.glob(".*"))  # no tile videos left behind
+
+
+def test_comparison_refuses_runs_that_did_not_learn_the_task(tiny_run, tmp_path):
+    with pytest.raises(ValueError, match=r"learned no task 'l'; valid: an index 0\.\.1"):
+        render_comparison_video([tiny_run], task="l", out_path=tmp_path / "x.mp4",
+                                style=STYLE)
 
 
 def test_rollout_video_decodes_with_expected_frames(tmp_path):
@@ -96,3 +210,7 @@ def test_video_cli_one_task_by_name(tiny_run, tmp_path, capsys):
     args = parser.parse_args(["video", str(tiny_run), "--task", "q", "--out", str(tmp_path)])
     assert args.func(args) == 2
     assert "valid: an index 0..1, a name (h, e) or 'all'" in capsys.readouterr().err
+
+    args = parser.parse_args(["video", "--compare", str(tiny_run), "--out", str(tmp_path)])
+    assert args.func(args) == 2
+    assert "--compare shows one task: give --task" in capsys.readouterr().err

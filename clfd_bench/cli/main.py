@@ -14,6 +14,7 @@ __all__ = ["build_parser", "main"]
 
 COMMANDS: tuple[str, ...] = (
     "data", "train", "evaluate", "score", "leaderboard", "paper", "replay", "video", "site",
+    "pretrained",
 )  # fmt: skip
 """Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
 
@@ -98,7 +99,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         command = " ".join(
             c for c in (args.command, getattr(args, "bench_command", None),
-                        getattr(args, "study_command", None)) if c
+                        getattr(args, "study_command", None),
+                        getattr(args, "pretrained_command", None)) if c
         )
         message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
         print(f"clfd-bench {command}: error: {message}", file=sys.stderr)

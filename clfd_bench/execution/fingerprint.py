@@ -20,17 +20,23 @@ def _version(dist: str) -> str | None:
         return None
 
 
-def _sim_files() -> Iterator[Path]:
-    """Files that define the simulator: its code, the task scenes and specs, robot assets."""
+def _sim_files() -> Iterator[tuple[str, Path]]:
+    """Files that define the simulator: its code, the task scenes and specs, robot assets, as
+    ``(name, path)``. The name is the same in a source checkout and in an installed wheel
+    (``sim/robot.py``, ``tasks/openbox.xml``), so a run executed in one is current in the other
+    (the wheel keeps ``tasks/`` under ``clfd_bench/_share/``)."""
     from clfd_bench.resources import resource_root
 
     pkg = Path(__file__).resolve().parent.parent
     for folder in (pkg / "sim", pkg / "envs"):
-        yield from sorted(folder.glob("*.py"))
-    yield pkg / "execution" / "rollout.py"  # what runs after the trajectory decides success too
+        for path in sorted(folder.glob("*.py")):
+            yield path.relative_to(pkg).as_posix(), path
+    # what runs after the trajectory decides success too
+    yield "execution/rollout.py", pkg / "execution" / "rollout.py"
     for name in ("tasks", "assets"):
         root = resource_root(name)
-        yield from sorted(p for p in root.rglob("*") if p.is_file() and p.suffix != ".md")
+        for path in sorted(p for p in root.rglob("*") if p.is_file() and p.suffix != ".md"):
+            yield f"{name}/{path.relative_to(root).as_posix()}", path
 
 
 @functools.lru_cache(maxsize=1)
@@ -39,15 +45,10 @@ def sim_fingerprint() -> str:
     ``clfd_bench/envs``, ``clfd_bench/execution/rollout.py``, ``tasks/`` and ``assets/`` and
     the mujoco, mink, gymnasium versions. Execution results are reused only under the same
     fingerprint."""
-    from clfd_bench.resources import resource_root
-
-    roots = [Path(__file__).resolve().parent.parent, resource_root("tasks").parent,
-             resource_root("assets").parent]
     digest = hashlib.sha256()
     for dist in ("mujoco", "mink", "gymnasium"):
         digest.update(f"{dist}={_version(dist)}\n".encode())
-    for path in _sim_files():
-        rel = next((str(path.relative_to(r)) for r in roots if path.is_relative_to(r)), path.name)
+    for rel, path in _sim_files():
         digest.update(rel.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()[:16]
 

@@ -64,6 +64,16 @@ class SavedRun:
     num_learned: int
 
     @property
+    def method(self) -> str:
+        """The CL method that made the run (``config.method``; "" when not recorded)."""
+        return str((self.results.get("config") or {}).get("method") or "")
+
+    @property
+    def complete(self) -> bool:
+        """Every task of the run is learned."""
+        return self.num_learned >= len(self.task_names)
+
+    @property
     def learned(self) -> list[str]:
         """Names of the learned tasks."""
         return self.task_names[: self.num_learned]

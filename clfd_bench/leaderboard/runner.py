@@ -287,7 +287,7 @@ def run_leaderboard(
         "tasks": tasks,
         "sim": sim,
         "executor": executor,
-        "figures": [str(p) for p in figures],
+        "figures": [p.name for p in figures],  # beside the tables: the folder can move
         "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)},
         "included": [{"path": str(p), "method": r.spec.method,
                       "external": bool((r.results.get("provenance") or {}).get("external"))}

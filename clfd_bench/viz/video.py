@@ -8,12 +8,19 @@ runs the text written with the learned letters in ``clfd/HelloWorld-v2``.
 
 Drawn into the scene (MuJoCo user geoms added after ``update_scene``): the prediction (orange)
 and the demonstration (green) as the tool should follow them, the tool's path so far (blue;
-for writing, the ink where the pen touched the board, dark blue). A caption names the run
-point, and the closing frames get a green (success) or red (failure) border.
+for writing, the ink where the pen touched the board, dark blue). A caption names the run's
+method, the task and the demo (:func:`run_caption`); the closing frames add the outcome and a
+green (success) or red (failure) border (:func:`outcome_caption`). The camera frames the robot
+and the props wherever the rollout takes them (found by a first rollout without rendering) at
+the frame's aspect (:func:`frame_camera`). :func:`render_comparison_video` puts several runs'
+rollouts of one task side by side, each tile rendered at its own size.
 
-Rendering cost: software OpenGL renders ~10-15 frames/s at 480×360 with shadows and
-reflections off (they cost ~7×); the defaults (:class:`VideoStyle`) keep a 1000-step task
-under a minute. Frames are streamed to the encoder, never all held in memory.
+Rendering cost, measured on a 2-core VM with software EGL (Mesa, no GPU) on HelloWorld 'h'
+(1060 steps, 369 frames at 20 fps), shadows and reflections off: 1280×720 (the default)
+renders ~17 frames/s including the simulation and encodes ~51/s, ~13/s end to end (≈ 30 s
+for one letter); 480×360 renders ~30/s and encodes ~200/s (≈ 13 s). Shadows and reflections
+cost 4-6×, 4× multisampling ~1.2× at 1280×720. Frames are streamed to the encoder, never all
+held in memory.
 """
 
 from __future__ import annotations
@@ -34,10 +41,17 @@ __all__ = [
     "OverlayRenderer",
     "VideoStyle",
     "VideoWriter",
+    "comparison_grid",
+    "comparison_path",
     "frame_camera",
+    "method_label",
+    "outcome_caption",
+    "outcome_text",
+    "render_comparison_video",
     "render_rollout",
     "render_text_video",
     "render_run_videos",
+    "run_caption",
     "text_for_letters",
 ]
 
@@ -65,15 +79,15 @@ class VideoStyle:
         fps: frames per simulated second, also the playback rate (real time); 60 / fps should
             be an integer (the control rate is 60 Hz).
         hold_s: seconds the last frame of each rollout is held (with the outcome border).
-        shadows: render shadows and reflections (≈ 7× slower with software OpenGL).
-        antialias: 4× multisampling (≈ 2× slower with software OpenGL).
+        shadows: render shadows and reflections (4-6× slower with software OpenGL).
+        antialias: 4× multisampling (~1.2× slower with software OpenGL at 1280×720).
         max_segments: most line segments drawn per path (paths are subsampled to it).
         line_px: line width in pixels (default: height / 120).
         caption: draw a caption (run point, outcome) into the frames.
     """
 
-    width: int = 480
-    height: int = 360
+    width: int = 1280
+    height: int = 720
     fps: float = 20.0
     hold_s: float = 0.75
     shadows: bool = False
@@ -108,15 +122,16 @@ class VideoStyle:
 
 class VideoWriter:
     """Streams frames ``[H, W, 3]`` uint8 into an mp4 (H.264 via imageio-ffmpeg), written to a
-    temporary sibling and renamed into place on :meth:`close` (atomic)."""
+    temporary sibling and renamed into place on :meth:`close` (atomic). ``quality``: imageio's
+    0-10 scale."""
 
-    def __init__(self, path: str | os.PathLike[str], fps: float):
+    def __init__(self, path: str | os.PathLike[str], fps: float, quality: int = 7):
         import imageio.v2 as iio
 
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._tmp = self.path.with_name(f".{self.path.stem}.{uuid.uuid4().hex[:8]}.tmp.mp4")
-        self._writer = iio.get_writer(self._tmp, fps=fps, codec="libx264", quality=7,
+        self._writer = iio.get_writer(self._tmp, fps=fps, codec="libx264", quality=quality,
                                       macro_block_size=2, ffmpeg_log_level="error")
         self.frames = 0
 
@@ -140,10 +155,13 @@ class VideoWriter:
 
 
 def frame_camera(points: np.ndarray, azimuth: float, elevation: float, fovy: float = 45.0,
-                 aspect: float = 4 / 3, margin: float = 1.05):
+                 aspect: float = 16 / 9, margin: float = 1.08):
     """A free camera that keeps ``points`` ``[K, 3]`` (m) in view from ``azimuth`` /
     ``elevation`` (degrees, MuJoCo's convention): looks at the centre of their bounding box
-    from the distance at which their bounding sphere fits the smaller field of view."""
+    from the nearest distance at which every point projects inside both the vertical field of
+    view (``fovy``) and the horizontal one (``aspect`` = width / height), times ``margin``.
+    So a wide frame (16:9) is filled sideways instead of fitting the points' bounding sphere
+    into its smaller, vertical field of view."""
     from clfd_bench.sim.render import CameraSpec
 
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
@@ -152,11 +170,19 @@ def frame_camera(points: np.ndarray, azimuth: float, elevation: float, fovy: flo
         raise ValueError("frame_camera needs at least one finite point")
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     center = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.05)
-    half = math.radians(fovy) / 2
-    if aspect < 1:
-        half = math.atan(math.tan(half) * aspect)
-    distance = margin * radius / math.sin(half)
+    az, el = math.radians(azimuth), math.radians(elevation)
+    forward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= max(float(np.linalg.norm(right)), 1e-9)
+    up = np.cross(right, forward)
+    rel = pts - center  # (K, 3)
+    depth, x, y = rel @ forward, np.abs(rel @ right), np.abs(rel @ up)  # (K,) each
+    tan_y = math.tan(math.radians(fovy) / 2)
+    tan_x = tan_y * aspect
+    # A point at depth z (along the view) is inside the frame from distance d when
+    # |x| <= (d + z) tan_x and |y| <= (d + z) tan_y.
+    need = np.maximum(x / tan_x, y / tan_y) - depth
+    distance = margin * max(float(need.max()), 0.05 / tan_y)
     return CameraSpec(lookat=tuple(float(c) for c in center), distance=float(distance),
                       azimuth=float(azimuth), elevation=float(elevation))
 
@@ -169,7 +195,9 @@ def _camera_for(base: Any, target: np.ndarray, extra: np.ndarray, aspect: float)
     """The camera of a rollout video. Writing: from the +y side, low (30° down) so the letter
     shows below the hand and reads left to right, looking just above the letter from at least
     0.8 m (the hand and forearm in view). Otherwise: a three-quarter view from in front of
-    the robot, beyond the task, framing the robot, the path and the objects."""
+    the robot, beyond the task, framing ``target`` (the tool's path) and ``extra`` (the robot
+    and the props wherever they go during the rollout, :func:`_motion_points`) in the frame's
+    aspect (:func:`frame_camera`)."""
     from clfd_bench.sim.render import CameraSpec
 
     fovy = float(base.model.vis.global_.fovy)
@@ -182,6 +210,46 @@ def _camera_for(base: Any, target: np.ndarray, extra: np.ndarray, aspect: float)
     toward = math.degrees(math.atan2(c[1], c[0]))
     return frame_camera(np.concatenate([target, extra]), toward + 180.0 + 40.0, -25.0,
                         fovy=fovy, aspect=aspect)
+
+
+#: Radius (m) around the robot's body origins and the props' that a frame keeps in view (the
+#: links and props have size; a body origin is one point of them).
+_ROBOT_REACH = 0.1
+_PROP_REACH = 0.05
+
+
+def _inflate(points: np.ndarray, radius: float) -> np.ndarray:
+    """``points`` [K, 3] and the corners of a cube of half-side ``radius`` around each
+    [9K, 3]."""
+    corners = np.array([[0, 0, 0]] + [[x, y, z] for x in (-1, 1) for y in (-1, 1)
+                                      for z in (-1, 1)], dtype=float) * radius  # (9, 3)
+    return (np.asarray(points, float).reshape(-1, 1, 3) + corners).reshape(-1, 3)
+
+
+def _motion_points(env: Any, trajectory: Any, demo: int, settle_s: float | None,
+                   every: int) -> np.ndarray:
+    """Where the robot and the props go when ``trajectory`` is executed [K, 3] (m): a first
+    rollout without rendering (the same steps as the rendered one; simulation costs little
+    next to rendering) that records the robot's body origins and the props' every ``every``
+    steps, inflated by their reach."""
+    from clfd_bench.execution.execute import execute
+    from clfd_bench.execution.trace import FrameHook
+
+    robot: list[np.ndarray] = []
+    props: list[np.ndarray] = []
+
+    def look(base: Any, tracer: Any) -> np.ndarray:
+        robot.append(_robot_points(base))
+        props.append(_object_points(base))
+        return _NO_FRAME
+
+    execute(env, trajectory, demo, settle_s=settle_s,
+            frame_hook=FrameHook(look, lambda frame: None, every))
+    return np.concatenate([_inflate(np.concatenate(robot), _ROBOT_REACH),
+                           _inflate(np.concatenate(props), _PROP_REACH)])
+
+
+_NO_FRAME = np.zeros((1, 1, 3), dtype=np.uint8)
 
 
 def _robot_points(base: Any) -> np.ndarray:
@@ -330,10 +398,24 @@ def _font(size: int):
     return ImageFont.load_default(size=size)
 
 
+def _fit(draw: Any, line: str, font: Any, width: int) -> str:
+    """``line`` cut (with an ellipsis) to at most ``width`` pixels in ``font``."""
+    if draw.textlength(line, font=font) <= width:
+        return line
+    lo, hi = 0, len(line)
+    while lo < hi:  # the longest prefix that fits with the ellipsis
+        mid = (lo + hi + 1) // 2
+        if draw.textlength(line[:mid] + "…", font=font) <= width:
+            lo = mid
+        else:
+            hi = mid - 1
+    return line[:lo] + "…"
+
+
 def _caption(frame: np.ndarray, text: str | None,
              border: tuple[int, int, int] | None = None) -> np.ndarray:
-    """``frame`` with ``text`` (if any) in its top-left corner and an optional coloured
-    border."""
+    """``frame`` with ``text`` (if any; one line per ``\\n``, each cut to the frame's width)
+    in its top-left corner on a black box, and an optional coloured border."""
     from PIL import Image, ImageDraw
 
     out = frame.copy()
@@ -341,9 +423,13 @@ def _caption(frame: np.ndarray, text: str | None,
         img = Image.fromarray(frame)
         draw = ImageDraw.Draw(img)
         font = _font(max(10, frame.shape[0] // 24))
-        x0, y0, x1, y1 = draw.textbbox((6, 4), text, font=font)
+        pad = max(3, frame.shape[0] // 60) + 3  # clear of the border
+        lines = [_fit(draw, line, font, frame.shape[1] - 2 * pad - 6)
+                 for line in text.split("\n")]
+        fitted = "\n".join(lines)
+        x0, y0, x1, y1 = draw.multiline_textbbox((pad, pad), fitted, font=font)
         draw.rectangle((x0 - 3, y0 - 2, x1 + 3, y1 + 2), fill=(0, 0, 0))
-        draw.text((6, 4), text, fill=(255, 255, 255), font=font)
+        draw.multiline_text((pad, pad), fitted, fill=(255, 255, 255), font=font)
         out = np.asarray(img).copy()
     if border is not None:
         w = max(3, frame.shape[0] // 60)
@@ -351,10 +437,35 @@ def _caption(frame: np.ndarray, text: str | None,
     return out
 
 
+def method_label(method: str) -> str:
+    """How a video names a run's method (its ``config.method``): the registry name upper-cased
+    ("hn" -> "HN"); a plugin named by an import spec (``pkg.mod:MyMethod``) by its class."""
+    return method.rsplit(":", 1)[-1] if ":" in method else method.upper()
+
+
+def outcome_text(result: Any) -> tuple[str, str]:
+    """``(short, reason)`` of an :class:`~clfd_bench.execution.execute.ExecResult`:
+    ``("success", "")``, or ``("failed (<kind>)", <the env's reason>)`` with the kind of
+    :data:`~clfd_bench.execution.execute.FAILURE_KINDS` (reflex, tracking, task, ...)."""
+    if result.success:
+        return "success", ""
+    return f"failed ({result.failure_kind or 'unknown'})", str(result.failure_reason or "")
+
+
+def outcome_caption(caption: str, result: Any) -> tuple[str, tuple[int, int, int]]:
+    """The text and border colour of a rollout's held closing frames: ``caption · success``
+    (green), or ``caption · failed (<kind>)`` and on a second line the env's reason (red)."""
+    short, reason = outcome_text(result)
+    text = f"{caption} · {short}" if caption else short
+    if reason:
+        text += f"\n{reason}"
+    return text, SUCCESS_RGB if result.success else FAILURE_RGB
+
+
 def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callable], *,
                    demonstration: Any | None = None, caption: str = "",
                    style: VideoStyle | None = None, trace: bool = False,
-                   settle_s: float | None = None):
+                   settle_s: float | None = None, camera: Any | None = None):
     """Executes ``trajectory`` from demo ``demo``'s start and streams rendered frames, with
     the paths drawn in, to every sink (e.g. ``VideoWriter.append``).
 
@@ -364,10 +475,14 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
         demo: the demo to reset to.
         sinks: callables taking one frame ``[H, W, 3]`` uint8.
         demonstration: the demonstration in the same form, drawn in green (optional).
-        caption: text drawn top-left; the outcome is added on the held closing frames.
+        caption: text drawn top-left; the outcome is added on the held closing frames
+            (:func:`outcome_caption`).
         style: a :class:`VideoStyle`.
         trace: keep the rollout's step-by-step trace (for rerun logging).
         settle_s: seconds of settling after the trajectory (default: the rollout's).
+        camera: a ``CameraSpec`` (default: one framing the tool's path, the robot and the
+            props wherever this rollout takes them, found by a first rollout without
+            rendering).
 
     Returns:
         ``(ExecResult, frames written per sink)``; the frame count is
@@ -382,10 +497,11 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
     static = [(target, PREDICTION_RGBA)]
     if demonstration is not None:
         static.insert(0, (tool_path(base, demonstration), DEMONSTRATION_RGBA))
-    env.reset(options={"demo": int(demo)})
-    extra = np.concatenate([_robot_points(base), _object_points(base)]
-                           + [s for s, _ in static[:-1]])
-    camera = _camera_for(base, target, extra, style.width / style.height)
+    if camera is None:  # the writing camera frames the letters only
+        moving = ([] if _is_writing(base)
+                  else [_motion_points(env, trajectory, demo, settle_s, style.every)])
+        extra = np.concatenate([np.zeros((0, 3)), *moving, *(s for s, _ in static[:-1])])
+        camera = _camera_for(base, target, extra, style.width / style.height)
     overlay = OverlayRenderer(base.model, style, camera)
     last: list[np.ndarray] = []
     count = [0]
@@ -402,10 +518,8 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
         result = execute(env, trajectory, demo, trace=trace, settle_s=settle_s,
                          frame_hook=FrameHook(overlay, sink, style.every))
         if style.hold_frames and last:
-            outcome = "success" if result.success else "failure"
-            text = (f"{caption}: {outcome}" if caption else outcome) if style.caption else None
-            held = _caption(last[0], text,
-                            border=SUCCESS_RGB if result.success else FAILURE_RGB)
+            text, border = outcome_caption(caption, result)
+            held = _caption(last[0], text if style.caption else None, border=border)
             for _ in range(style.hold_frames):
                 for s in sinks:
                     s(held)
@@ -439,6 +553,24 @@ def _resolve_tasks(task: int | str | None, names: Sequence[str]) -> list[int]:
                      f"a name ({', '.join(names)}) or 'all'")
 
 
+def run_caption(run: Any, what: str, demo: int) -> str:
+    """``HN · task 3 'l' · demo 0``: the run's method (its config), what is executed, the
+    demo; ``· after task i`` when the run has not learned all its tasks yet."""
+    parts = [method_label(run.method) if run.method else run.path.name, what, f"demo {demo}"]
+    if not run.complete:
+        parts.append(f"after task {run.num_learned - 1} of {len(run.task_names)}")
+    return " · ".join(parts)
+
+
+def _video_stem(run: Any) -> str:
+    """A run's videos' file-name stem: its directory's name, prefixed by its method when the
+    name does not start with it, so the runs of a leaderboard (one name per method folder)
+    do not overwrite each other's videos in one folder."""
+    name = _safe(run.path.resolve().name)
+    method = _safe(run.method.rsplit(":", 1)[-1]) if run.method else ""
+    return name if not method or name.startswith(method) else f"{method}_{name}"
+
+
 def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
@@ -464,7 +596,9 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
 
     Returns:
         The written files: ``{run}_task{j}_{name}_demo{d}.mp4`` per task, then
-        ``{run}_all_tasks_demo{d}.mp4`` and ``{run}_text_demo{d}.mp4`` when made.
+        ``{run}_all_tasks_demo{d}.mp4`` and ``{run}_text_demo{d}.mp4`` when made; ``{run}``
+        is the run directory's name, prefixed by its method when it does not start with it
+        (a leaderboard's runs are all called e.g. ``fast_nodet_o0_s0``: ``hn_fast_nodet_o0_s0``).
     """
     from clfd_bench.envs.registration import env_id_for
     from clfd_bench.execution.env_pool import get_env
@@ -473,7 +607,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
 
     style = style or VideoStyle()
     out_dir = Path(out_dir)
-    run = load_run(run_dir)
+    run = saved = load_run(run_dir)
     run_dir, dataset, m = run.path, run.dataset, run.num_learned
     if m == 0:
         raise ValueError(f"{run_dir} has no learned task yet; nothing to render")
@@ -484,7 +618,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
     n_demos = min(len(preds[j]) for j in selected)
     if not 0 <= demo < n_demos:
         raise ValueError(f"demo {demo} out of range: the run predicted demos 0..{n_demos - 1}")
-    run = _safe(run_dir.resolve().name)
+    run = _video_stem(saved)
     logger = None
     if rerun_path is not None:
         from clfd_bench.viz.rerun_log import RolloutLogger
@@ -509,7 +643,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
             try:
                 result, _ = render_rollout(
                     env, preds[j][demo], demo, sinks, demonstration=demos[j][demo],
-                    caption=f"after task {m - 1}: task {j} '{names[j]}', demo {demo}",
+                    caption=run_caption(saved, f"task {j} '{names[j]}'", demo),
                     style=style, trace=logger is not None)
             except BaseException:
                 writer.abort()
@@ -522,7 +656,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
             written.append(joint.close())
             joint = None
         if hello_world and dataset == "helloworld" and len(selected) == m:
-            path = _render_text(run, out_dir, names, preds, demos, demo, style, logger)
+            path = _render_text(saved, run, out_dir, names, preds, demos, demo, style, logger)
             if path is not None:
                 written.append(path)
     finally:
@@ -551,11 +685,12 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
         raise ValueError(f"{run.path} has no learned task yet; nothing to render")
     preds = load_run_predictions(run.path, run.num_learned - 1)
     demos = dict(enumerate(run.demos()))
-    return _render_text(_safe(run.path.resolve().name), Path(out_dir), run.learned, preds,
-                        demos, demo, style or VideoStyle(), None)
+    return _render_text(run, _video_stem(run), Path(out_dir), run.learned,
+                        preds, demos, demo, style or VideoStyle(), None)
 
 
-def _render_text(run: str, out_dir: Path, names: Sequence[str], preds: dict[int, np.ndarray],
+def _render_text(saved: Any, run: str, out_dir: Path, names: Sequence[str],
+                 preds: dict[int, np.ndarray],
                  demos: dict[int, np.ndarray], demo: int, style: VideoStyle,
                  logger: Any) -> Path | None:
     """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v2``)."""
@@ -576,7 +711,7 @@ def _render_text(run: str, out_dir: Path, names: Sequence[str], preds: dict[int,
     try:
         result, _ = render_rollout(env, trajectory, demo, [writer.append],
                                    demonstration=demonstration,
-                                   caption=f"'{text}' from the learned letters, demo {demo}",
+                                   caption=run_caption(saved, f"'{text}'", demo),
                                    style=style, trace=logger is not None)
     except BaseException:
         writer.abort()
@@ -585,3 +720,177 @@ def _render_text(run: str, out_dir: Path, names: Sequence[str], preds: dict[int,
         logger.log_rollout(f"video/text/demo_{demo}", base, result, prediction=trajectory,
                            demonstration=demonstration)
     return writer.close()
+
+
+# ----------------------------------------------------------------------------- comparison
+def comparison_grid(n: int, style: VideoStyle) -> tuple[int, int, int, int]:
+    """``(rows, cols, tile_width, tile_height)`` of a comparison of ``n`` tiles in a frame of
+    ``style``'s size: ``cols = ceil(sqrt(n))``, ``rows = ceil(n / cols)``, tiles of equal,
+    even size (the frame's remainder is a black margin)."""
+    if n < 1:
+        raise ValueError("a comparison needs at least one run")
+    cols = math.ceil(math.sqrt(n))
+    rows = math.ceil(n / cols)
+    tw, th = (style.width // cols) // 2 * 2, (style.height // rows) // 2 * 2
+    if tw < 16 or th < 16:
+        raise ValueError(f"{n} tiles do not fit a {style.width}x{style.height} frame "
+                         f"({tw}x{th} each); choose a larger --size")
+    return rows, cols, tw, th
+
+
+def _legend(tile: tuple[int, int], lines: Sequence[str]) -> np.ndarray:
+    """A black tile ``(width, height)`` with ``lines`` of text (the comparison's empty
+    cell)."""
+    from PIL import Image, ImageDraw
+
+    w, h = tile
+    img = Image.new("RGB", (w, h))
+    draw = ImageDraw.Draw(img)
+    font = _font(max(10, h // 16))
+    pad = max(4, h // 20)
+    draw.multiline_text((pad, pad), "\n".join(_fit(draw, t, font, w - 2 * pad) for t in lines),
+                        fill=(255, 255, 255), font=font, spacing=max(2, h // 40))
+    return np.asarray(img)
+
+
+def comparison_path(run_dir: str | os.PathLike[str], task: int | str, demo: int = 0,
+                    out_dir: str | os.PathLike[str] = "videos") -> Path:
+    """``out_dir/compare_<dataset>_task<j>_<name>_demo<d>.mp4``, named after ``run_dir``'s
+    task ``task`` (an index or a name)."""
+    from clfd_bench.execution.saved_run import load_run
+
+    run = load_run(run_dir)
+    j = _resolve_tasks(task, run.task_names)[0]
+    name = _safe(run.task_names[j])
+    return Path(out_dir) / f"compare_{run.dataset}_task{j}_{name}_demo{demo}.mp4"
+
+
+def render_comparison_video(run_dirs: Sequence[str | os.PathLike[str]], task: int | str,
+                            demo: int = 0, out_path: str | os.PathLike[str] | None = None,
+                            style: VideoStyle | None = None) -> Path:
+    """One video of the same task executed by several runs (e.g. every method of a
+    leaderboard after learning all tasks), side by side: a grid of tiles
+    (:func:`comparison_grid`), each rendered at tile size, captioned with the run's method
+    and, on its held closing frames, its outcome (:func:`outcome_caption`). Every tile has
+    the same camera (framing all the runs' rollouts) and starts together; a rollout that ends
+    earlier holds its last frame. An empty cell, if any, names the task and the colours.
+
+    Args:
+        run_dirs: run directories of ``clfd-bench train`` on one dataset (each run's
+            predictions after its last learned task are executed).
+        task: the task's index or name (the index counts in the first run's task order).
+        demo: the demo whose start every prediction starts from (and whose demonstration is
+            drawn).
+        out_path: the mp4 (default ``videos/compare_<dataset>_task<j>_<name>_demo<d>.mp4``).
+        style: the whole frame's :class:`VideoStyle` (its size is the grid's).
+
+    Returns:
+        The written mp4.
+
+    Raises:
+        ValueError: no runs, runs of different datasets, a run that has not learned the
+            task, a demo out of range, or a frame too small for the tiles.
+    """
+    import tempfile
+
+    import imageio.v2 as iio
+
+    from clfd_bench.envs.registration import env_id_for
+    from clfd_bench.execution.env_pool import get_env
+    from clfd_bench.execution.saved_run import load_run, load_run_predictions
+    from clfd_bench.execution.trace import tool_path
+
+    style = style or VideoStyle()
+    runs = [load_run(d) for d in run_dirs]
+    if not runs:
+        raise ValueError("render_comparison_video needs at least one run directory")
+    datasets = sorted({r.dataset for r in runs})
+    if len(datasets) > 1:
+        raise ValueError(f"the runs are on different datasets ({', '.join(datasets)}); a "
+                         "comparison shows one task of one dataset")
+    name = runs[0].task_names[_resolve_tasks(task, runs[0].task_names)[0]]
+    trajectories = []
+    for run in runs:
+        if name not in run.learned:
+            raise ValueError(f"{run.path} has not learned task {name!r} (learned: "
+                             f"{', '.join(run.learned) or 'none'})")
+        preds = load_run_predictions(run.path, run.num_learned - 1)
+        j = run.learned.index(name)
+        if not 0 <= demo < len(preds[j]):
+            raise ValueError(f"demo {demo} out of range: {run.path} predicted demos 0.."
+                             f"{len(preds[j]) - 1}")
+        trajectories.append(preds[j][demo])
+    j = runs[0].task_names.index(name)
+    demonstration = runs[0].demos()[j][demo]
+    dataset = datasets[0]
+    out = Path(out_path) if out_path is not None else comparison_path(runs[0].path, j, demo)
+    rows, cols, tw, th = comparison_grid(len(runs), style)
+    tile = dataclasses.replace(style, width=tw, height=th)
+    env = get_env(env_id_for(dataset, name))
+    base = env.unwrapped
+    # One camera for every tile: the union of all the rollouts' paths and motion.
+    targets = np.concatenate([tool_path(base, t) for t in trajectories])
+    extra = [tool_path(base, demonstration)]
+    if not _is_writing(base):
+        extra += [_motion_points(env, t, demo, None, tile.every) for t in trajectories]
+    camera = _camera_for(base, targets, np.concatenate(extra), tw / th)
+    labels = [method_label(r.method) if r.method else r.path.name for r in runs]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=".compare.", dir=out.parent) as tmp:
+        tiles = []
+        for k, traj in enumerate(trajectories):
+            path = Path(tmp) / f"tile{k}.mp4"
+            writer = VideoWriter(path, tile.fps, quality=9)
+            try:
+                render_rollout(env, traj, demo, [writer.append], demonstration=demonstration,
+                               caption=f"{labels[k]} · '{name}'", style=tile, camera=camera)
+            except BaseException:
+                writer.abort()
+                raise
+            tiles.append(writer.close())
+        legend = None
+        if rows * cols > len(runs):
+            learned = "after learning all tasks" if all(r.complete for r in runs) else (
+                "after each run's last learned task")
+            legend = _legend((tw, th), [f"{dataset}: task {j} '{name}'", f"demo {demo}, {learned}",
+                                        "orange: prediction", "green: demonstration",
+                                        "blue: the tool's path (writing: its ink)"])
+        _compose(tiles, out, style, rows, cols, (tw, th), legend, iio)
+    return out
+
+
+def _compose(tiles: Sequence[Path], out: Path, style: VideoStyle, rows: int, cols: int,
+             size: tuple[int, int], legend: np.ndarray | None, iio: Any) -> None:
+    """Plays the tile videos side by side into ``out`` (a tile that has ended holds its last
+    frame; the first empty cell shows ``legend``)."""
+    tw, th = size
+    x0, y0 = (style.width - cols * tw) // 2, (style.height - rows * th) // 2
+    readers = [iio.get_reader(p) for p in tiles]
+    iters = [iter(r) for r in readers]
+    last: list[np.ndarray | None] = [None] * len(tiles)
+    canvas = np.zeros((style.height, style.width, 3), dtype=np.uint8)
+    if legend is not None:
+        r, c = divmod(len(tiles), cols)
+        canvas[y0 + r * th: y0 + (r + 1) * th, x0 + c * tw: x0 + (c + 1) * tw] = legend
+    writer = VideoWriter(out, style.fps)
+    try:
+        while True:
+            fresh = False
+            for k, it in enumerate(iters):
+                frame = next(it, None)
+                if frame is not None:
+                    last[k], fresh = np.asarray(frame)[:th, :tw, :3], True
+            if not fresh:
+                break
+            for k, frame in enumerate(last):
+                if frame is not None:
+                    r, c = divmod(k, cols)
+                    canvas[y0 + r * th: y0 + (r + 1) * th, x0 + c * tw: x0 + (c + 1) * tw] = frame
+            writer.append(canvas)
+    except BaseException:
+        writer.abort()
+        raise
+    finally:
+        for reader in readers:
+            reader.close()
+    writer.close()
