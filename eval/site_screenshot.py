@@ -41,9 +41,10 @@ def main() -> int:
                 if m.type == "error" else None)
         page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
         page.goto(index.as_uri())
-        page.wait_for_function("() => Array.from(document.querySelectorAll('video'))"
-                               ".every(v => v.readyState >= 2 || v.error)", timeout=60_000)
-        page.wait_for_timeout(3000)  # let the wall's videos play a few seconds
+        # the wall shows each tile's poster (its closing frame) until it is pointed at
+        page.wait_for_function("() => Array.from(document.images).every(i => i.complete)",
+                               timeout=60_000)
+        page.wait_for_timeout(2000)  # posters load like images but are not in document.images
         args.out.parent.mkdir(parents=True, exist_ok=True)
         page.screenshot(path=str(args.out))
         wall = args.out.with_name(f"{args.out.stem}_wall{args.out.suffix}")

@@ -16,6 +16,7 @@ from pathlib import Path
 from urllib.parse import unquote
 
 import imageio.v3 as iio
+import numpy as np
 import pytest
 
 from clfd_bench.execution.saved_run import load_run
@@ -50,7 +51,7 @@ def site(results):
 
 
 class _Refs(HTMLParser):
-    """Every href / src of a page."""
+    """Every href / src / poster of a page."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -58,7 +59,7 @@ class _Refs(HTMLParser):
 
     def handle_starttag(self, tag, attrs):
         for name, value in attrs:
-            if name in ("href", "src") and value and not value.startswith("data:"):
+            if name in ("href", "src", "poster") and value and not value.startswith("data:"):
                 self.refs.append(value)
 
 
@@ -88,6 +89,39 @@ def test_every_referenced_file_exists_and_decodes(site):
         frames = iio.imread(video)
         assert frames.shape[1:] == (STYLE["height"], STYLE["width"], 3) and len(frames) > 1
     assert [p.name for p in out.rglob(".*")] == [".lock"], "temporary files left"
+
+
+class _Tiles(HTMLParser):
+    """(outcome, poster) of every wall tile with a video."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tiles: list[tuple[str, str]] = []
+        self._outcome: str | None = None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "figure" and "tile" in (a.get("class") or "").split():
+            self._outcome = a["class"].split()[1]
+        elif tag == "video" and self._outcome is not None:
+            self.tiles.append((self._outcome, a["poster"]))
+
+
+def test_posters_show_the_recorded_outcome(site):
+    """Each tile's poster is its video's closing frame, whose border the re-executed rollout
+    colours: it must agree with the outcome the run's execution recorded (the tile's class)."""
+    from clfd_bench.viz.video import FAILURE_RGB, SUCCESS_RGB
+
+    out, _ = site
+    parser = _Tiles()
+    parser.feed((out / "index.html").read_text(encoding="utf-8"))
+    assert len(parser.tiles) == len(METHODS) * TASKS
+    assert {outcome for outcome, _ in parser.tiles} <= {"success", "failure"}
+    for outcome, poster in parser.tiles:
+        corner = iio.imread(out / poster)[1, 1, :3].astype(int)
+        want = SUCCESS_RGB if outcome == "success" else FAILURE_RGB
+        other = FAILURE_RGB if outcome == "success" else SUCCESS_RGB
+        assert np.abs(corner - want).sum() < np.abs(corner - other).sum(), (poster, outcome)
 
 
 def test_rebuild_reuses_videos_and_keeps_the_pages(site, results):
@@ -216,7 +250,11 @@ def _open(browser, path: Path):
     page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}")
             if m.type in ("error", "warning") else None)
     page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-    page.on("requestfailed", lambda r: problems.append(f"request failed: {r.url}"))
+    # A media element cancels its own range request when it is told to load again or to
+    # suspend (net::ERR_ABORTED, nothing a reader sees); any other failed request is a problem.
+    page.on("requestfailed", lambda r: None if (r.failure == "net::ERR_ABORTED"
+                                                and r.url.endswith(".mp4"))
+            else problems.append(f"request failed: {r.url} ({r.failure})"))
     page.goto(path.as_uri())
     page.wait_for_load_state("load")
     return page, problems
@@ -248,6 +286,14 @@ def _check_media(page, expect_videos: int) -> None:
         assert v["duration"] > 0 and v["width"] == STYLE["width"], v
     for image in media["images"]:
         assert image["width"] > 0, f"image does not decode: {image['src']}"
+    posters = page.evaluate("""() => Promise.all(
+      Array.from(document.querySelectorAll('video[poster]')).map(v => new Promise(done => {
+        const img = new Image();
+        img.onload = () => done(img.naturalWidth);
+        img.onerror = () => done(0);
+        img.src = v.poster;
+      })))""")
+    assert posters and all(w > 0 for w in posters), "a poster does not decode"
 
 
 def test_index_in_headless_chromium(site, browser):
@@ -258,6 +304,12 @@ def test_index_in_headless_chromium(site, browser):
     wall = page.query_selector_all("table.wall tbody tr")
     assert sorted(r.get_attribute("data-method") for r in wall) == sorted(METHODS)
     _check_media(page, len(METHODS) * TASKS)
+    # A tile plays while the pointer is on it, and stops when it leaves.
+    tile = page.locator("video.tile").first
+    tile.hover()
+    page.wait_for_function("() => !document.querySelector('video.tile').paused", timeout=10_000)
+    page.mouse.move(0, 0)
+    page.wait_for_function("() => document.querySelector('video.tile').paused", timeout=10_000)
     # Failed tiles are marked and say why.
     for tile in page.query_selector_all("figure.tile.failure"):
         assert tile.query_selector(".reason").inner_text().strip()

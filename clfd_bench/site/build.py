@@ -7,9 +7,11 @@ What the site holds (``SITE_DIR/``)::
                              failures of its last model, config, provenance
     runs/<run>_R.png         the heat maps
     figures/*.png            the leaderboard's figures (copied)
-    videos/<run>/<key>/task<j>/*.mp4   the wall's tiles (see clfd_bench.site.wall)
+    videos/<run>/<key>/task<j>/*.mp4   the wall's tiles, each with its poster *.png (see
+                             clfd_bench.site.wall)
     data/leaderboard.*       the leaderboard's tables (copied)
     site.css, sort.js        style and the table sorter (a few lines of plain JavaScript)
+    wall.js                  plays a wall tile while the pointer is on it (posters otherwise)
 
 Everything is read through the files' owner modules: the leaderboard
 (:mod:`clfd_bench.leaderboard.report`), the runs (:mod:`clfd_bench.execution.saved_run`,
@@ -38,6 +40,7 @@ from clfd_bench.site.wall import (
     TileJob,
     TileResult,
     existing_video,
+    poster_for,
     render_tiles,
     tile_key,
 )
@@ -64,7 +67,7 @@ _COLUMNS = (
 )
 _GROUPS = {"trajectory": "Trajectory (DTW under the paper's threshold)",
            "execution": "Execution on the simulated Panda", "cost": "Cost"}
-_STATIC = ("site.css", "sort.js")
+_STATIC = ("site.css", "sort.js", "wall.js")
 
 
 @dataclasses.dataclass
@@ -244,8 +247,8 @@ def _tile(run: _Run, j: int, demo: int, result: TileResult | None, site: Path,
     saved = run.saved
     execution = saved.execution(j)
     tile: dict[str, Any] = {"task": j, "name": saved.task_names[j], "video": None,
-                            "outcome": None, "kind": None, "reason": None, "rate": None,
-                            "note": None}
+                            "poster": None, "outcome": None, "kind": None, "reason": None,
+                            "rate": None, "note": None}
     if execution is not None and demo < len(execution.success):
         ok = execution.success[demo]
         tile.update(outcome="success" if ok else "failure", kind=execution.kinds[demo],
@@ -255,6 +258,7 @@ def _tile(run: _Run, j: int, demo: int, result: TileResult | None, site: Path,
         tile["note"] = "not executed in simulation"
     if result is not None and result.video is not None:
         tile["video"] = result.video.relative_to(site).as_posix()
+        tile["poster"] = poster_for(result.video).relative_to(site).as_posix()
     elif result is not None:
         tile["note"] = f"no video: {result.error}"
     elif not videos:

@@ -17,7 +17,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-__all__ = ["WALL_STYLE", "TileJob", "TileResult", "existing_video", "render_tiles", "tile_key"]
+__all__ = ["WALL_STYLE", "TileJob", "TileResult", "existing_video", "poster_for", "render_tiles",
+           "tile_key"]
 
 WALL_STYLE = {"width": 240, "height": 180, "fps": 6.0}
 """Size and frame rate of the wall's tiles: software OpenGL costs ~35-45 ms per frame
@@ -66,6 +67,33 @@ def existing_video(out_dir: str | os.PathLike[str], task: int) -> Path | None:
     videos = sorted(p for p in folder.glob("*.mp4") if not p.name.startswith("."))
     named = [p for p in videos if f"task{task}_" in p.name]
     return (named or videos or [None])[0]
+
+
+def poster_for(video: str | os.PathLike[str]) -> Path:
+    """The poster of a tile's video: its last frame as a PNG beside it (``<video>.png``; the
+    closing frame shows the outcome's border and the whole path), written once, atomically.
+
+    A wall of dozens of autoplaying videos is more than a browser decodes at once (headless
+    Chromium shows some of them black), so the wall shows posters and plays a video only while
+    the pointer is on it."""
+    import uuid
+
+    import imageio.v2 as iio
+
+    video = Path(video)
+    poster = video.with_suffix(".png")
+    if poster.is_file():
+        return poster
+    frames = iio.mimread(video, memtest=False)  # a tile is small: ~100 frames of 240x180
+    if not frames:
+        raise ValueError(f"{video} has no frame; delete its folder and build the site again")
+    tmp = poster.with_name(f".{poster.stem}.{uuid.uuid4().hex[:8]}.tmp.png")
+    try:
+        iio.imwrite(tmp, frames[-1])
+        os.replace(tmp, poster)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return poster
 
 
 def _render(job: TileJob) -> TileResult:
