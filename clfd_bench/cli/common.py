@@ -9,7 +9,8 @@ import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-__all__ = ["add_executor_arguments", "finish", "ints", "names", "run_grid", "unknown_dataset"]
+__all__ = ["add_executor_arguments", "finish", "frame_size", "ints", "names", "run_grid",
+           "unknown_dataset"]
 
 
 def ints(text: str) -> list[int]:
@@ -19,6 +20,16 @@ def ints(text: str) -> list[int]:
     except ValueError:
         msg = f"expected comma-separated integers, got {text!r}"
         raise argparse.ArgumentTypeError(msg) from None
+
+
+def frame_size(text: str) -> tuple[int, int]:
+    """An argparse type for a frame size "WIDTHxHEIGHT" (e.g. 1280x720) -> (width, height)."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT, e.g. 1280x720, got {text!r}"
+                                         ) from None
+    return w, h
 
 
 def names(text: str) -> list[str]:

@@ -16,16 +16,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from clfd_bench.cli.common import frame_size
+
 __all__ = ["register"]
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT, e.g. 240x180, got {text!r}"
-                                         ) from None
-    return w, h
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -75,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="do not render the video wall (outcomes are still shown)")
     p.add_argument("--demo", type=int, default=0,
                    help="the wall's executions start from this demo's start (default 0)")
-    p.add_argument("--size", type=_size, metavar="WxH",
+    p.add_argument("--size", type=frame_size, metavar="WxH",
                    default=(WALL_STYLE["width"], WALL_STYLE["height"]),
                    help=f"tile size (default {WALL_STYLE['width']}x{WALL_STYLE['height']})")
     p.add_argument("--fps", type=float, default=WALL_STYLE["fps"],

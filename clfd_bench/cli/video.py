@@ -23,16 +23,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from clfd_bench.cli.common import frame_size
+
 __all__ = ["register"]
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"size must be WIDTHxHEIGHT, e.g. 1280x720, got {text!r}"
-                                         ) from None
-    return w, h
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -96,7 +89,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="also log the rendered rollouts to this rerun file")
     p.add_argument("--fps", type=float, default=20.0,
                    help="frames per simulated second, played in real time (default 20)")
-    p.add_argument("--size", type=_size, default=(VideoStyle.width, VideoStyle.height),
+    p.add_argument("--size", type=frame_size, default=(VideoStyle.width, VideoStyle.height),
                    metavar="WxH", help=f"frame size (default {VideoStyle.width}x"
                                        f"{VideoStyle.height}; with --compare the whole grid's)")
     p.add_argument("--shadows", action="store_true",

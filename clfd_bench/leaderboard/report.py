@@ -64,8 +64,8 @@ from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.node_variants import node_label
 
 __all__ = ["COLUMNS", "LEADERBOARD_JSON", "NOT_PROVIDED", "TIE", "LeaderboardRun",
-           "PaperRanking", "leaderboard_figures", "leaderboard_runs", "paper_ranking",
-           "paper_values", "rank", "read_leaderboard", "write_tables"]
+           "PaperRanking", "format_cell", "leaderboard_figures", "leaderboard_runs",
+           "paper_ranking", "paper_values", "rank", "read_leaderboard", "write_tables"]
 
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("CL_score", "CL_score"),
@@ -258,8 +258,10 @@ NOT_PROVIDED = "—"
 """The cell of a value the run did not provide (predictions scored from elsewhere)."""
 
 
-def _fmt(value: float, key: str) -> str:
-    if math.isnan(value):
+def format_cell(value: float | None, key: str) -> str:
+    """A table cell: "-" for a missing value, parameter counts with thousands separators,
+    training seconds whole, everything else to two decimals."""
+    if value is None or math.isnan(value):
         return "-"
     if key == "final_params":
         return f"{value:,.0f}"
@@ -290,8 +292,8 @@ def _cell(row: MethodRow, key: str) -> str:
         return NOT_PROVIDED if key in row.not_provided else "-"
     q1, q3 = row.iqr(key)
     if len(row.values.get(key, [])) > 1 and (q3 - q1) > 0:
-        return f"{_fmt(med, key)} [{_fmt(q1, key)}, {_fmt(q3, key)}]"
-    return _fmt(med, key)
+        return f"{format_cell(med, key)} [{format_cell(q1, key)}, {format_cell(q3, key)}]"
+    return format_cell(med, key)
 
 
 def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) -> str:

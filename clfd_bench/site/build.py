@@ -26,7 +26,6 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import json
-import math
 import re
 import shutil
 import time
@@ -35,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from clfd_bench.io import atomic_write_bytes, atomic_write_text
+from clfd_bench.leaderboard.report import format_cell as _fmt
 from clfd_bench.site.wall import (
     WALL_STYLE,
     TileJob,
@@ -93,16 +93,6 @@ class SiteResult:
 
 def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+=-]+", "__", name).strip("_") or "run"
-
-
-def _fmt(value: float | None, key: str) -> str:
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "-"
-    if key == "final_params":
-        return f"{value:,.0f}"
-    if key == "train_time_s":
-        return f"{value:.0f}"
-    return f"{value:.2f}"
 
 
 def _copy(src: Path, dst: Path) -> Path:
