@@ -38,11 +38,6 @@ class TaskExecution:
     reasons: list[str | None]
     kinds: list[str | None]
 
-    @property
-    def rate(self) -> float:
-        """The fraction of demos whose execution succeeded."""
-        return sum(self.success) / len(self.success) if self.success else float("nan")
-
 
 @dataclasses.dataclass(frozen=True)
 class SavedRun:
