@@ -294,7 +294,7 @@ def _run_page(run: _Run, site: Path) -> dict[str, Any]:
     ctx["has_commit"] = any("commit" in key for rows in ctx["provenance"].values()
                             for key, _ in rows)
     ctx["summary"] = [
-        ("method", str((results.get("config") or {}).get("method", run.label))),
+        ("method", saved.method or run.label),
         ("dataset", saved.dataset), ("task order", str(saved.order)),
         ("tasks", ", ".join(saved.task_names)),
         ("learned", f"{saved.num_learned} of {len(saved.task_names)}"),
@@ -450,11 +450,13 @@ def _build(results_dir: Path, out: Path, doc: dict[str, Any], *, videos: bool, d
         result.video_seconds = time.perf_counter() - t_videos
     tasks: list[str] = []
     for run in wall:
-        run.tiles = [_tile(run, j, demo, tile_results.get((str(run.saved.path), j)), out,
-                           videos) for j in range(run.saved.num_learned)]
-        for tile in run.tiles:
-            if tile["video"] is None and tile["note"] and tile["note"].startswith("no video"):
+        run.tiles = []
+        for j in range(run.saved.num_learned):
+            rendered = tile_results.get((str(run.saved.path), j))
+            tile = _tile(run, j, demo, rendered, out, videos)
+            if rendered is not None and rendered.video is None:
                 result.video_errors.append((run.name, tile["name"], tile["note"]))
+            run.tiles.append(tile)
         for name in run.saved.task_names[: run.saved.num_learned]:
             if name not in tasks:
                 tasks.append(name)
