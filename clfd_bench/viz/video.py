@@ -556,10 +556,16 @@ def _resolve_tasks(task: int | str | None, names: Sequence[str]) -> list[int]:
 def run_caption(run: Any, what: str, demo: int) -> str:
     """``HN · task 3 'l' · demo 0``: the run's method (its config), what is executed, the
     demo; ``· after task i`` when the run has not learned all its tasks yet."""
-    parts = [method_label(run.method) if run.method else run.path.name, what, f"demo {demo}"]
+    parts = [_run_label(run), what, f"demo {demo}"]
     if not run.complete:
         parts.append(f"after task {run.num_learned - 1} of {len(run.task_names)}")
     return " · ".join(parts)
+
+
+def _run_label(run: Any) -> str:
+    """A run in a caption: its method (:func:`method_label`), or its folder's name when the
+    run records none."""
+    return method_label(run.method) if run.method else run.path.name
 
 
 def _video_stem(run: Any) -> str:
@@ -607,18 +613,18 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
 
     style = style or VideoStyle()
     out_dir = Path(out_dir)
-    run = saved = load_run(run_dir)
-    run_dir, dataset, m = run.path, run.dataset, run.num_learned
+    saved = load_run(run_dir)
+    run_dir, dataset, m = saved.path, saved.dataset, saved.num_learned
     if m == 0:
         raise ValueError(f"{run_dir} has no learned task yet; nothing to render")
-    names = run.learned
+    names = saved.learned
     selected = _resolve_tasks(task, names)
     preds = load_run_predictions(run_dir, m - 1)
-    demos = dict(enumerate(run.demos()))
+    demos = dict(enumerate(saved.demos()))
     n_demos = min(len(preds[j]) for j in selected)
     if not 0 <= demo < n_demos:
         raise ValueError(f"demo {demo} out of range: the run predicted demos 0..{n_demos - 1}")
-    run = _video_stem(saved)
+    stem = _video_stem(saved)
     logger = None
     if rerun_path is not None:
         from clfd_bench.viz.rerun_log import RolloutLogger
@@ -627,7 +633,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
     written: list[Path] = []
     joint = None
     if all_tasks_video and len(selected) > 1:
-        joint = VideoWriter(out_dir / f"{run}_all_tasks_demo{demo}.mp4", style.fps)
+        joint = VideoWriter(out_dir / f"{stem}_all_tasks_demo{demo}.mp4", style.fps)
     try:
         for j in progress(selected, desc=f"videos {run_dir.name}", unit="task"):
             try:
@@ -637,7 +643,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
                               stacklevel=2)
                 continue
             env = get_env(env_id)
-            writer = VideoWriter(out_dir / f"{run}_task{j}_{_safe(names[j])}_demo{demo}.mp4",
+            writer = VideoWriter(out_dir / f"{stem}_task{j}_{_safe(names[j])}_demo{demo}.mp4",
                                  style.fps)
             sinks = [writer.append] + ([joint.append] if joint is not None else [])
             try:
@@ -656,7 +662,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
             written.append(joint.close())
             joint = None
         if hello_world and dataset == "helloworld" and len(selected) == m:
-            path = _render_text(saved, run, out_dir, names, preds, demos, demo, style, logger)
+            path = _render_text(saved, stem, out_dir, names, preds, demos, demo, style, logger)
             if path is not None:
                 written.append(path)
     finally:
@@ -689,7 +695,7 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
                         preds, demos, demo, style or VideoStyle(), None)
 
 
-def _render_text(saved: Any, run: str, out_dir: Path, names: Sequence[str],
+def _render_text(saved: Any, stem: str, out_dir: Path, names: Sequence[str],
                  preds: dict[int, np.ndarray],
                  demos: dict[int, np.ndarray], demo: int, style: VideoStyle,
                  logger: Any) -> Path | None:
@@ -707,7 +713,7 @@ def _render_text(saved: Any, run: str, out_dir: Path, names: Sequence[str],
     letters = [c for c in text if c != " "]
     trajectory = [preds[index[c]][demo] for c in letters]
     demonstration = [demos[index[c]][demo] for c in letters]
-    writer = VideoWriter(out_dir / f"{run}_text_demo{demo}.mp4", style.fps)
+    writer = VideoWriter(out_dir / f"{stem}_text_demo{demo}.mp4", style.fps)
     try:
         result, _ = render_rollout(env, trajectory, demo, [writer.append],
                                    demonstration=demonstration,
@@ -834,7 +840,7 @@ def render_comparison_video(run_dirs: Sequence[str | os.PathLike[str]], task: in
     if not _is_writing(base):
         extra += [_motion_points(env, t, demo, None, tile.every) for t in trajectories]
     camera = _camera_for(base, targets, np.concatenate(extra), tw / th)
-    labels = [method_label(r.method) if r.method else r.path.name for r in runs]
+    labels = [_run_label(r) for r in runs]
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".compare.", dir=out.parent) as tmp:
         tiles = []
