@@ -34,28 +34,27 @@ from clfd_bench.viz.video import (
 STYLE = VideoStyle(width=160, height=120, fps=3.0, hold_s=1.0, max_segments=40)
 
 
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    """SG on HelloWorld's first two letters, smoke profile."""
+def _train_two_letters(tmp_path_factory, method: str):
+    """``method`` on HelloWorld's first two letters, smoke profile, seed 0."""
     from clfd_bench.harness.config import resolve_config
     from clfd_bench.harness.protocol import run_training
 
-    out = tmp_path_factory.mktemp("run") / "sg_smoke"
-    run_training(resolve_config("sg", "helloworld", "smoke", seed=0, tasks=2), out, threads=1,
-                 log=None)
+    out = tmp_path_factory.mktemp("run") / f"{method}_smoke"
+    run_training(resolve_config(method, "helloworld", "smoke", seed=0, tasks=2), out,
+                 threads=1, log=None)
     return out
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """SG on HelloWorld's first two letters, smoke profile."""
+    return _train_two_letters(tmp_path_factory, "sg")
 
 
 @pytest.fixture(scope="module")
 def tiny_ft_run(tmp_path_factory):
-    """FT on HelloWorld's first two letters, smoke profile (a second method to compare)."""
-    from clfd_bench.harness.config import resolve_config
-    from clfd_bench.harness.protocol import run_training
-
-    out = tmp_path_factory.mktemp("run") / "ft_smoke"
-    run_training(resolve_config("ft", "helloworld", "smoke", seed=0, tasks=2), out, threads=1,
-                 log=None)
-    return out
+    """FT on HelloWorld's first two letters (a second method to compare)."""
+    return _train_two_letters(tmp_path_factory, "ft")
 
 
 def test_default_size_is_1280x720_and_stays_an_option():
