@@ -223,8 +223,14 @@ def _safe_members(tar: tarfile.TarFile, source: Path) -> list[tarfile.TarInfo]:
     return members
 
 
-def _empty(path: Path) -> bool:
-    return not path.exists() or (path.is_dir() and not any(path.iterdir()))
+def _check_out(out: Path, force: bool) -> None:
+    """Refuses an ``out`` folder that is a file, or exists and is not empty without
+    ``force``."""
+    if out.exists() and not out.is_dir():
+        raise PretrainedError(f"--out {out} is a file; give a folder")
+    if not force and out.exists() and any(out.iterdir()):
+        raise PretrainedError(f"--out {out} exists and is not empty; choose another folder or "
+                              "add --force to replace it")
 
 
 def extract_archive(archive: str | os.PathLike[str], out_dir: str | os.PathLike[str],
@@ -239,11 +245,7 @@ def extract_archive(archive: str | os.PathLike[str], out_dir: str | os.PathLike[
             empty and ``force`` is off. Nothing is left behind.
     """
     archive, out = Path(archive), Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise PretrainedError(f"--out {out} is a file; give a folder")
-    if not force and not _empty(out):
-        raise PretrainedError(f"--out {out} exists and is not empty; choose another folder or "
-                              "add --force to replace it")
+    _check_out(out, force)
     _check_sha256(archive, bundle)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".get", dir=out.parent))
@@ -295,9 +297,7 @@ def get(name: str, out_dir: str | os.PathLike[str] | None = None, *,
     """
     bundle = lookup(name)
     out = Path(out_dir) if out_dir is not None else default_out(name)
-    if not force and not _empty(out):  # before any download or hashing
-        raise PretrainedError(f"--out {out} exists and is not empty; choose another folder or "
-                              "add --force to replace it")
+    _check_out(out, force)  # before any download or hashing
     return extract_archive(archive_path(bundle), out, bundle, force=force)
 
 
