@@ -79,3 +79,14 @@ def test_a_run_stops_early_and_records_it(tmp_path):
     plain = resolve_config("hn", "helloworld", "smoke", tasks=1, overrides=base)
     full = run_training(plain, tmp_path / "plain", threads=1, log=None)
     assert full["iterations_by_part"] == {"position": [200]}
+
+
+def test_packnet_refuses_a_stop_rule_that_would_skip_its_retraining():
+    from clfd_bench.harness.learner import Learner
+
+    cfg = resolve_config("packnet", "helloworld", "smoke", overrides=["stop_window=10"])
+    with pytest.raises(ConfigError, match="packnet_retrain"):
+        Learner.from_config(cfg, 2)
+    ok = resolve_config("packnet", "helloworld", "smoke",
+                        overrides=["stop_window=10", "packnet_retrain=0"])
+    Learner.from_config(ok, 2)  # pruning after the last iteration: nothing to cut off
