@@ -171,11 +171,14 @@ def cpu_provenance() -> dict[str, Any]:
     kernels and stuck at 50 with AVX-512, same seed; docs/snode.md). Returns ``model`` (from
     ``/proc/cpuinfo`` where there is one, else ``platform.processor()``), ``torch_capability``
     (``torch.backends.cpu.get_cpu_capability()``) and ``kernel_env``: the set variables of
-    :data:`KERNEL_ENV`.
+    :data:`KERNEL_ENV`, and ``blas``: the linear-algebra libraries and MKL's reproducibility
+    mode (:func:`clfd_bench.kernels.blas_provenance`).
     """
     import os
 
     import torch
+
+    from clfd_bench.kernels import blas_provenance
 
     model = platform.processor()
     try:
@@ -185,7 +188,8 @@ def cpu_provenance() -> dict[str, Any]:
     except OSError:
         pass
     return {"model": model, "torch_capability": torch.backends.cpu.get_cpu_capability(),
-            "kernel_env": {k: os.environ[k] for k in KERNEL_ENV if k in os.environ}}
+            "kernel_env": {k: os.environ[k] for k in KERNEL_ENV if k in os.environ},
+            "blas": blas_provenance()}
 
 
 def dataset_provenance(ds: Dataset) -> dict[str, Any]:
