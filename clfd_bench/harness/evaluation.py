@@ -219,7 +219,8 @@ def results_document(
             task), and per task: ``train_time_s``, ``num_params``, ``stored_samples``
             (``[M]`` lists, or None when not known), ``train_time_s_by_part``,
             ``num_params_by_part`` (``{part: [M]}`` or None), ``iterations_per_s_by_part``,
-            ``final_loss_by_part``.
+            ``final_loss_by_part``; optionally ``train_cpu_s`` (``[M]``, this process's CPU
+            seconds per task, None where unknown; absent for external predictions).
         complete: every task of the run is learned.
         provenance: what ``results.json`` records as ``provenance``.
         checkpoint: the checkpoint file relative to the run directory (None: none).
@@ -248,6 +249,7 @@ def results_document(
         "metrics": list(metrics),
         "thresholds": thresholds,
         "train_time_s": state["train_time_s"],
+        "train_cpu_s": state.get("train_cpu_s"),
         "train_time_s_by_part": state["train_time_s_by_part"],
         "iterations_per_s_by_part": state["iterations_per_s_by_part"],
         "final_loss_by_part": state["final_loss_by_part"],

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -138,6 +139,7 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
     return {
         "tasks": task_names,
         "train_time_s": [],
+        "train_cpu_s": [],
         "train_time_s_by_part": {p: [] for p in parts},
         "iterations_per_s_by_part": {p: [] for p in parts},
         "final_loss_by_part": {p: [] for p in parts},
@@ -252,6 +254,9 @@ def run_training(
                 "results will mix those float kernels with this one's (provenance.cpu_by_task "
                 "records which task was learned where; seeds reproduce a run on one CPU only)")
         saved_state["tasks"] = state["tasks"]
+        # a run saved before CPU time was recorded: unknown for its finished tasks
+        saved_state["train_cpu_s"] = (list(saved_state.get("train_cpu_s") or [])
+                                      + [None] * done)[:done]
         for metric in metrics:  # widen saved rows to the (possibly larger) task count
             saved_state["errors"][metric] = [
                 (row + [None] * n_tasks)[:n_tasks] for row in saved_state["errors"][metric]
@@ -270,6 +275,7 @@ def run_training(
         task = tasks[i]
         seed_i = task_seed(config.seed, i)
         times_by_part = {}
+        cpu_start = time.process_time()
         for kind, part in learner.parts.items():
             torch.manual_seed(seed_i)
             generator = torch.Generator().manual_seed(seed_i + 1)
@@ -281,6 +287,7 @@ def run_training(
             state["num_params_by_part"][kind].append(part.method.num_params())
         provenance["cpu_by_task"].append(provenance["cpu"])
         state["train_time_s"].append(sum(times_by_part.values()))
+        state["train_cpu_s"].append(time.process_time() - cpu_start)
         state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
         state["stored_samples"].append(
             max(p.method.stored_samples() for p in learner.parts.values())
