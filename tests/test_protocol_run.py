@@ -43,7 +43,7 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
         assert len(results[key]) == 2
     # CPU seconds of this process per task: spent, and not more than 2 threads' worth
     assert all(0 < c <= 2 * w + 0.5 for c, w in zip(results["train_cpu_s"],
-                                                      results["train_time_s"]))
+                                                      results["train_time_s"], strict=True))
     assert results["stored_samples"] == [8 * 1000, 2 * 8 * 1000]
     for metric in ("dtw", "frechet", "swept_area"):
         rows = results["errors"][metric]
