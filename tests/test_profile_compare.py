@@ -6,15 +6,24 @@ import pytest
 
 from clfd_bench.cli.main import main
 from clfd_bench.harness.validate import InputError
-from clfd_bench.studies.profile_compare import compare_profiles, markdown, write_comparison
+from clfd_bench.studies.profile_compare import (
+    compare_profiles,
+    markdown,
+    read_comparison,
+    write_comparison,
+)
 
 
 def _board(folder, dataset, seeds, rows):
     folder.mkdir(parents=True)
-    doc = {"schema_version": 1, "meta": {"dataset": dataset, "seeds": seeds}, "paper": {},
-           "rows": [{"method": m, "runs_ok": len(v["exec_ACC"]),
+    meta = {"dataset": dataset, "seeds": seeds, "methods": list(rows), "profile": folder.name,
+            "orders": [0], "node": "t", "tasks": None, "sim": True, "runs": {}, "figures": []}
+    doc = {"schema_version": 1, "meta": meta, "paper": {},
+           "rows": [{"rank": i, "method": m, "runs_ok": len(v["exec_ACC"]), "runs_failed": 0,
+                     "paper_rank": None, "errors": [], "exec_failures": None,
+                     "not_provided": [],
                      "metrics": {k: {"values": vals} for k, vals in v.items()}}
-                    for m, v in rows.items()]}
+                    for i, (m, v) in enumerate(rows.items(), 1)]}
     (folder / "leaderboard.json").write_text(json.dumps(doc))
     return folder
 
@@ -50,6 +59,8 @@ def test_medians_gaps_and_marks(folders, tmp_path):
     md, js = write_comparison(cmp, tmp_path / "out")
     assert md.read_text() == text
     assert json.loads(js.read_text())["exec_gap"]["fast"]["sg"] is None
+    assert markdown(read_comparison(tmp_path / "out")) == text
+    assert read_comparison(tmp_path) is None
 
 
 def test_other_datasets_or_one_folder_are_refused(folders, tmp_path):
@@ -68,3 +79,14 @@ def test_cli_refuses_a_folder_without_label(folders, capsys):
     assert err.count("\n") == 1 and "is not LABEL=FOLDER" in err
     assert main(["paper", "profiles", f"fast={folders['fast']}", f"full={folders['full']}"]) == 0
     assert "| CHN |" in capsys.readouterr().out
+
+
+def test_the_site_shows_a_written_comparison(folders, tmp_path):
+    from clfd_bench.site import build_site
+
+    results = folders["full"]
+    index = build_site(results, tmp_path / "site0", videos=False).index.read_text()
+    assert 'id="profiles-table"' not in index
+    write_comparison(compare_profiles(folders), results)
+    index = build_site(results, tmp_path / "site1", videos=False).index.read_text()
+    assert 'id="profiles-table"' in index and "<td>-0.35 ✗</td>" in index

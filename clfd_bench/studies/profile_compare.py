@@ -23,8 +23,8 @@ from clfd_bench.harness.validate import InputError
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.report import read_leaderboard
 
-__all__ = ["EXEC_TOLERANCE", "KEYS", "ProfileComparison", "compare_profiles", "markdown",
-           "write_comparison"]
+__all__ = ["EXEC_TOLERANCE", "KEYS", "ProfileComparison", "caption", "compare_profiles",
+           "markdown", "read_comparison", "table", "write_comparison"]
 
 #: |exec ACC(fast) - exec ACC(reference)| a faithful profile stays within (issue 38).
 EXEC_TOLERANCE = 0.05
@@ -133,26 +133,15 @@ def _cell(cmp: ProfileComparison, profile: str, method: str, key: str) -> str:
     return med
 
 
-def markdown(cmp: ProfileComparison) -> str:
-    """The comparison as a markdown table: a row per method, each key at every profile, then
-    each non-reference profile's exec ACC gap to the reference (marked when it exceeds
-    :data:`EXEC_TOLERANCE`)."""
+def table(cmp: ProfileComparison) -> tuple[list[str], list[list[str]]]:
+    """The comparison's header and rows of cells: a row per method, each key of :data:`KEYS`
+    at every profile, the runs, then each non-reference profile's exec ACC gap to the
+    reference (marked ✗ beyond :data:`EXEC_TOLERANCE`)."""
     ref = cmp.profiles[-1]
     head = ["method"] + [f"{h} {p}" for _, h in KEYS for p in cmp.profiles] \
         + [f"runs {p}" for p in cmp.profiles] \
         + [f"exec ACC {p} − {ref}" for p in cmp.profiles[:-1]]
-    lines = [
-        f"# {cmp.dataset}: profiles {', '.join(cmp.profiles)}",
-        "",
-        "Cells: median [min–max] over finished runs (seeds "
-        + "; ".join(f"{p}: {cmp.seeds[p]}" for p in cmp.profiles)
-        + f"). Sources: {', '.join(f'{p} {s}' for p, s in cmp.sources.items())}. A gap over "
-        f"{EXEC_TOLERANCE} is marked ✗ (issue 38: fast must stay within it of {ref}, or say "
-        "why). train CPU s: CPU seconds of one run's training.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|" + "---|" * len(head),
-    ]
+    rows = []
     for method in cmp.methods:
         cells = [method.upper()]
         cells += [_cell(cmp, p, method, key) for key, _ in KEYS for p in cmp.profiles]
@@ -161,7 +150,25 @@ def markdown(cmp: ProfileComparison) -> str:
             gap = cmp.exec_gap(method, p)
             cells.append("—" if not math.isfinite(gap) else
                          f"{gap:+.2f}" + (" ✗" if abs(gap) > EXEC_TOLERANCE else ""))
-        lines.append("| " + " | ".join(cells) + " |")
+        rows.append(cells)
+    return head, rows
+
+
+def caption(cmp: ProfileComparison) -> str:
+    """What the cells are, the seeds and sources, and the tolerance rule."""
+    return ("Cells: median [min–max] over finished runs (seeds "
+            + "; ".join(f"{p}: {cmp.seeds[p]}" for p in cmp.profiles)
+            + f"). Sources: {', '.join(f'{p} {s}' for p, s in cmp.sources.items())}. A gap "
+            f"over {EXEC_TOLERANCE} is marked ✗ (issue 38: fast must stay within it of "
+            f"{cmp.profiles[-1]}, or say why). train CPU s: CPU seconds of one run's training.")
+
+
+def markdown(cmp: ProfileComparison) -> str:
+    """The comparison as a markdown table (:func:`table`) under a title and :func:`caption`."""
+    head, rows = table(cmp)
+    lines = [f"# {cmp.dataset}: profiles {', '.join(cmp.profiles)}", "", caption(cmp), "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(cells) + " |" for cells in rows]
     return "\n".join(lines) + "\n"
 
 
@@ -174,3 +181,26 @@ def write_comparison(cmp: ProfileComparison, out: str | Path,
     atomic_write_text(md, markdown(cmp))
     atomic_write_json(js, cmp.to_json())
     return md, js
+
+
+def read_comparison(folder: str | Path, stem: str = "profile_comparison"
+                    ) -> ProfileComparison | None:
+    """The comparison :func:`write_comparison` wrote into ``folder``; None when there is none.
+
+    Raises:
+        InputError: the file is there but not a comparison this version can read.
+    """
+    import json
+
+    path = Path(folder) / f"{stem}.json"
+    if not path.is_file():
+        return None
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+        return ProfileComparison(
+            dataset=str(d["dataset"]), profiles=tuple(d["profiles"]),
+            methods=tuple(d["methods"]), values=d["values"], runs=d["runs"],
+            seeds=d["seeds"], sources=d["sources"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{path} is not a profile comparison ({exc!r}); write it again with "
+                         "`clfd-bench paper profiles ... --out FOLDER`") from None
