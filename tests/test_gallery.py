@@ -129,3 +129,18 @@ def test_cli_refuses_a_folder_without_runs(tmp_path, capsys):
     assert err.count("\n") == 0
     assert err.startswith("clfd-bench gallery: error:") and "holds no run" in err
     assert not out.exists()
+
+
+def test_contact_sheet_rows_take_the_nearest_over_a_datasets_envs():
+    from clfd_bench.viz.gallery import pick_caption, sheet_picks
+
+    exs = [_ex("x1", 0.0090, env="clfd/X-v0"), _ex("y1", 0.0098, env="clfd/Y-v0"),
+           _ex("x2", 0.0105, env="clfd/X-v0"), _ex("y2", 0.0120, env="clfd/Y-v0")]
+    rows = sheet_picks(select_borderline(exs), {"clfd/X-v0": "ds", "clfd/Y-v0": "ds"})
+    goal = next(r for r in rows["ds"] if r[0] == "goal [m]")
+    assert goal[1].execution.key == "y1" and goal[2].execution.key == "x2"
+    hausdorff = next(r for r in rows["ds"] if r[0] == "hausdorff [m]")
+    assert hausdorff[2] is None  # no execution fails it
+    lines = pick_caption(goal[2])
+    assert lines[1].startswith("goal 0.0105 m > 0.01 m → fails")
+    assert lines[2] == "only this check fails: it alone fails the execution"

@@ -256,7 +256,7 @@ class _Drawer:
         if getattr(base, "tool", None) == "pen" and hasattr(base, "target"):
             from clfd_bench.execution.execute import execute
 
-            result = execute(env, traj, demo, trace=True)
+            result = execute(env, traj, demo, stop_when_decided=False)
             drawn = {"kind": "writing", "target": np.asarray(base.target(), float),
                      "demos": np.asarray(base.demos, float),
                      "ink": base.to_data(base.ink_trace()), "goal": np.asarray(base.goal),
