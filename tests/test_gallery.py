@@ -44,13 +44,13 @@ def executions() -> list[Execution]:
     ]
 
 
-def test_nearest_on_each_side_prefers_decisive(executions):
+def test_nearest_on_each_side_failures_of_only_this_check_first(executions):
     (goal, hausdorff) = select_borderline(executions, per_side=1)
     assert (goal.env_id, goal.check) == ("clfd/Fake-v0", "goal")
-    # B is nearer the bound but failed on hausdorff: A, whose verdict is the goal's, comes first.
-    assert [p.execution.key for p in goal.passing] == ["A"]
-    assert goal.passing[0].decisive and goal.passing[0].side == "pass"
-    assert goal.passing[0].margin == pytest.approx(0.0005)
+    # The nearest pass, whatever else failed (B: hausdorff), which the pick names.
+    assert [p.execution.key for p in goal.passing] == ["B"]
+    assert goal.passing[0].side == "pass" and goal.passing[0].also_failed == ("hausdorff",)
+    assert not goal.passing[0].decisive and goal.passing[0].margin == pytest.approx(0.0001)
     # C is nearer but fails hausdorff too: D, failing only the goal, comes first.
     assert [p.execution.key for p in goal.failing] == ["D"]
     assert goal.failing[0].decisive and goal.failing[0].also_failed == ()
@@ -62,8 +62,8 @@ def test_nearest_on_each_side_prefers_decisive(executions):
 
 def test_more_per_side_fill_with_the_others_and_say_what_else_failed(executions):
     goal = select_borderline(executions, per_side=3)[0]
-    assert [p.execution.key for p in goal.passing] == ["A", "B"]
-    assert goal.passing[1].also_failed == ("hausdorff",) and not goal.passing[1].decisive
+    assert [p.execution.key for p in goal.passing] == ["B", "A"]
+    assert goal.passing[1].also_failed == () and goal.passing[1].decisive
     assert [p.execution.key for p in goal.failing] == ["D", "E", "C"]
     assert goal.failing[2].also_failed == ("hausdorff",)
     assert goal.failing[1].margin == pytest.approx(-0.02)

@@ -6,12 +6,12 @@
 For every run under the results folders (``runs/<dataset>/<method>/...``), every execution of
 its saved predictions is scored with the env's checks (executing what the run's sim cache
 lacks, as ``clfd-bench evaluate`` does, which also refreshes the run's execution fields).
-Per env and numeric check, the K executions nearest the bound on the passing side (successful
-executions preferred) and on the failing side (executions failing only this check preferred)
-are executed again and drawn: ink against target for letters and shapes, the closing frame for
-scenes, each captioned with method, task, demo, the value against its bound and the verdict.
-DIR receives the pictures, ``gallery.md`` and one contact sheet per dataset
-(``gallery_<dataset>.png``; ``--sheets`` writes those elsewhere, e.g. ``docs/figures``).
+Per env and numeric check, the K executions nearest the bound on the passing side and on the
+failing side (there, executions failing only this check first) are executed again and drawn:
+ink against target for letters and shapes, the closing frame for scenes, each captioned
+with method, task, demo, the value against its bound and the verdict. DIR receives the
+pictures, ``gallery.md`` and one contact sheet per dataset (``gallery_<dataset>.png``;
+``--sheets`` writes those elsewhere, e.g. ``docs/figures``).
 Envs that report no checks are listed as such, not drawn.
 """
 
@@ -37,8 +37,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"clfd-bench gallery: error: {exc}", file=sys.stderr)
         return 2
     print(f"{report.pictures} pictures of {len(report.borderlines)} checks from "
-          f"{report.executions} executions with checks (gathering {report.gather_s:.0f} s, "
-          f"drawing {report.render_s:.0f} s)")
+          f"{report.executions} distinct executions ({report.left_out} left out: the episode "
+          f"ended early; gathering {report.gather_s:.0f} s, drawing {report.render_s:.0f} s)")
     for env_id, n in sorted(report.no_checks.items()):
         print(f"no checks reported: {env_id} ({n} executions; its env does not fill "
               "info['checks'])")

@@ -5,8 +5,8 @@ Input is a list of :class:`Execution` (one executed prediction with its env's fi
 :class:`clfd_bench.envs.checks.Check`); :func:`select_borderline` returns, for every env and
 every numeric check, up to ``per_side`` :class:`Pick` on each side:
 
-- *passing side*: ``margin >= 0``, smallest margin first; executions whose other checks all
-  pass too (the execution succeeded, so this check's verdict is the execution's) are preferred.
+- *passing side*: ``margin >= 0``, smallest margin first (:attr:`Pick.decisive` says whether
+  the execution succeeded, :attr:`Pick.also_failed` what else failed).
 - *failing side*: ``margin < 0``, smallest ``|margin|`` first; executions that fail *only this
   check* are preferred (their failure is this check's alone); the others name what else
   failed (:attr:`Pick.also_failed`).
@@ -98,8 +98,8 @@ class Borderline:
 
     Attributes:
         env_id, check: which.
-        passing, failing: up to ``per_side`` picks each, nearest the bound first within the
-            preferred group (see the module docstring).
+        passing, failing: up to ``per_side`` picks each, nearest the bound first (failing:
+            the decisive ones first; see the module docstring).
         candidates: executions with a measured value of this check (pass, fail).
     """
 
@@ -162,8 +162,8 @@ def select_borderline(executions: Sequence[Execution], per_side: int = 2
                 side = "pass" if c.passed else "fail"
                 pick = Pick(ex, c, side, decisive=not others, also_failed=others)
                 (passing if c.passed else failing).append(pick)
-            # Decisive first, then nearest the bound; the key breaks ties deterministically.
-            passing.sort(key=lambda p: (not p.decisive, p.margin, p.execution.key))
+            # Nearest the bound (failing: decisive first); the key breaks ties.
+            passing.sort(key=lambda p: (p.margin, p.execution.key))
             failing.sort(key=lambda p: (not p.decisive, -p.margin, p.execution.key))
             out.append(Borderline(env_id, name, tuple(passing[:per_side]),
                                   tuple(failing[:per_side]), (len(passing), len(failing))))

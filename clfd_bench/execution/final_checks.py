@@ -41,13 +41,14 @@ class Gathered:
     """What :func:`gather_executions` found.
 
     Attributes:
-        executions: every evaluation point with checks (label: ``run`` path, ``method``,
-            ``dataset``, ``task`` name, ``task_index``, ``after_task``, ``demo``, ``env_id``).
+        executions: every executed evaluation point with checks, and those whose episode
+            ended early (incomplete, with or without checks) (label: ``run`` path,
+            ``method``, ``dataset``, ``task`` name, ``task_index``, ``after_task``, ``demo``,
+            ``env_id``, ``prediction_key``).
         runs: the runs read, in order.
         skipped: runs left out, with the reason (path -> text).
-        no_checks: env ids whose executions report no checks (their envs do not fill
-            ``info["checks"]``), with how many distinct executions (predictions that
-            diverged are not executed and not counted).
+        no_checks: env ids whose whole-episode executions report no checks (their envs do
+            not fill ``info["checks"]``), with how many distinct executions.
         executed_to_horizon: rollouts run again to the horizon in this call.
         wall_s: wall-clock seconds of the whole call.
     """
@@ -108,15 +109,17 @@ def gather_executions(run_dirs: Sequence[str | os.PathLike[str]], *, workers: in
             if summary.get("stopped_early"):
                 key = prediction_key(p.env_id, p.demo, settle_s, p.trajectory, to_horizon=True)
                 summary = cache[key]
-            raw = summary.get("checks")
-            if raw is None:
-                if summary.get("failure_kind") != "diverged":
-                    no_checks.setdefault(p.env_id, set()).add(key)
+            raw, kind = summary.get("checks"), summary.get("failure_kind")
+            if kind == "diverged":  # not executed: nothing was measured
                 continue
-            complete = (summary.get("failure_kind") in _WHOLE_EPISODE_KINDS
-                        and not summary.get("stopped_early"))
+            complete = kind in _WHOLE_EPISODE_KINDS and not summary.get("stopped_early")
+            if raw is None and complete:
+                no_checks.setdefault(p.env_id, set()).add(key)
+                continue
+            # An episode that ended early (motion limit, tracking, reach, collision) may
+            # carry no checks: it is kept, incomplete, so that it is counted as left out.
             executions.append(Execution(
-                env_id=p.env_id, key=key, checks=tuple(check_from_json(c) for c in raw),
+                env_id=p.env_id, key=key, checks=tuple(check_from_json(c) for c in raw or ()),
                 complete=complete, success=bool(summary.get("success")),
                 label=_label(run, p)))
     return Gathered(executions, runs, skipped, {e: len(k) for e, k in no_checks.items()}, redone,
