@@ -32,7 +32,7 @@ from clfd_bench.execution.scoring import failure_counts, sim_fields
 from clfd_bench.progress import progress
 from clfd_bench.runs import RunDir
 
-__all__ = ["EvalPoint", "RolloutObserver", "evaluate_run", "evaluation_points"]
+__all__ = ["EvalPoint", "RolloutObserver", "evaluate_run", "evaluation_points", "worker_init"]
 
 
 def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, dict, float]:
@@ -43,7 +43,9 @@ def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, 
     return key, res.summary(), res.wall_s
 
 
-def _worker_init() -> None:
+def worker_init() -> None:
+    """Initializer of a process executing rollouts: it dies with its parent, shows no
+    progress bars and runs torch on one thread."""
     import os
 
     from clfd_bench.procs import die_with_parent
@@ -203,7 +205,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
             ctx = multiprocessing.get_context("spawn")  # no inherited GL / torch threads
             with concurrent.futures.ProcessPoolExecutor(
                     max_workers=min(workers, len(jobs)), mp_context=ctx,
-                    initializer=_worker_init) as pool:
+                    initializer=worker_init) as pool:
                 for result in pool.map(_run_job, jobs.values(), chunksize=1):
                     done(*result)
                     bar.update(1)

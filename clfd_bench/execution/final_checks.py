@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +67,8 @@ def gather_executions(run_dirs: Sequence[str | os.PathLike[str]], *, workers: in
 
     Args:
         run_dirs: run directories (e.g. from :func:`clfd_bench.runs.find_runs`).
-        workers: processes for :func:`evaluate_run` (the to-horizon rollouts run here).
+        workers: processes executing rollouts (:func:`evaluate_run`'s and the to-horizon
+            ones).
         settle_s: settling time of the executions (default: the rollout's; the cache keys
             depend on it).
 
@@ -96,7 +97,7 @@ def gather_executions(run_dirs: Sequence[str | os.PathLike[str]], *, workers: in
                 run = load_run(store.path)
                 cache = store.load_cache(fingerprint)
                 points = evaluation_points(run, settle_s)
-                redone += _run_to_horizon(store, fingerprint, cache, points, settle_s)
+                redone += _run_to_horizon(store, fingerprint, cache, points, settle_s, workers)
         except (RunLockedError, FileNotFoundError, ValueError, KeyError) as exc:
             skipped[str(store.path)] = str(exc)
             continue
@@ -133,7 +134,7 @@ def _label(run: SavedRun, p: EvalPoint) -> dict[str, Any]:
 
 
 def _run_to_horizon(store: RunDir, fingerprint: str, cache: dict[str, Any],
-                    points: Sequence[EvalPoint], settle_s: float | None) -> int:
+                    points: Sequence[EvalPoint], settle_s: float | None, workers: int) -> int:
     """Runs every prediction whose cached rollout stopped early once more to its horizon
     (cached under its to-horizon key); returns how many rollouts ran."""
     jobs: dict[str, EvalPoint] = {}
@@ -148,16 +149,41 @@ def _run_to_horizon(store: RunDir, fingerprint: str, cache: dict[str, Any],
         return 0
     bar = progress(total=len(jobs), desc=f"to horizon {Path(store.path).name}", unit="rollout")
     last_save = time.monotonic()
+    ordered = [(key, p.env_id, p.demo, p.trajectory, settle_s) for key, p in
+               sorted(jobs.items(), key=lambda kv: (kv[1].env_id, kv[1].demo))]
     try:
-        for key, p in sorted(jobs.items(), key=lambda kv: (kv[1].env_id, kv[1].demo)):
-            res = execute(get_env(p.env_id), p.trajectory, p.demo, settle_s=settle_s,
-                          stop_when_decided=False)
-            cache[key] = res.summary()
-            bar.update(1)
-            if time.monotonic() - last_save > 5.0:
-                store.save_cache(fingerprint, cache)
-                last_save = time.monotonic()
+        if workers == 1 or len(ordered) == 1:
+            results: Iterable[tuple[str, dict[str, Any]]] = map(_to_horizon_job, ordered)
+            pool = None
+        else:
+            import concurrent.futures
+            import multiprocessing
+
+            from clfd_bench.execution.evaluate import worker_init
+
+            pool = concurrent.futures.ProcessPoolExecutor(
+                max_workers=min(workers, len(ordered)),
+                mp_context=multiprocessing.get_context("spawn"), initializer=worker_init)
+            results = pool.map(_to_horizon_job, ordered, chunksize=1)
+        try:
+            for key, summary in results:
+                cache[key] = summary
+                bar.update(1)
+                if time.monotonic() - last_save > 5.0:
+                    store.save_cache(fingerprint, cache)
+                    last_save = time.monotonic()
+        finally:
+            if pool is not None:
+                pool.shutdown(cancel_futures=True)
     finally:
         bar.close()
         store.save_cache(fingerprint, cache)
     return len(jobs)
+
+
+def _to_horizon_job(job: tuple[str, str, int, Any, float | None]) -> tuple[str, dict[str, Any]]:
+    """(key, env id, demo, trajectory, settle) -> (key, summary of the rollout run to its
+    horizon)."""
+    key, env_id, demo, traj, settle_s = job
+    res = execute(get_env(env_id), traj, demo, settle_s=settle_s, stop_when_decided=False)
+    return key, res.summary()
