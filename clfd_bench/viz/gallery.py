@@ -46,7 +46,6 @@ __all__ = ["GalleryReport", "build_gallery", "pick_caption", "sheet_picks"]
 #: Pixels of one scene's closing frame.
 _FRAME_W, _FRAME_H = 800, 600
 _DPI = 100
-_MARK = {True: "pass", False: "FAIL"}
 
 
 @dataclasses.dataclass
@@ -279,6 +278,7 @@ class _Drawer:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.patches import Rectangle
 
         drawn = self._execute(pick)
         checks: list[Check] = drawn["checks"]
@@ -303,10 +303,9 @@ class _Drawer:
         listing = "   ".join(f"{'✓' if c.passed else '✗'} {c.describe()}" for c in checks)
         fig.text(0.02, 0.17, "all checks of this execution:\n" + _wrap(listing, 105),
                  fontsize=8, va="top", family="monospace")
-        for spine_colour in (colour,):
-            fig.patches.append(matplotlib.patches.Rectangle(
-                (0.003, 0.003), 0.994, 0.994, transform=fig.transFigure, fill=False,
-                edgecolor=spine_colour, linewidth=4))
+        fig.patches.append(Rectangle(  # the verdict's colour as a border
+            (0.003, 0.003), 0.994, 0.994, transform=fig.transFigure, fill=False,
+            edgecolor=colour, linewidth=4))
         path.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=_DPI)
         plt.close(fig)
