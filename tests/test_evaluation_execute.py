@@ -49,6 +49,14 @@ def test_true_demo_succeeds_reversed_demo_fails(letter_h):
     assert not full.success and full.failure_kind == "task" and full.steps == 1060
     assert full.failure_reason.startswith("task not achieved")
     assert "dtw=" in full.failure_reason
+    # The summary (what the sim cache stores) says which rollout stopped early and keeps the
+    # env's final checks; a task failure's reason names the failed checks first.
+    assert wrong.summary()["stopped_early"] is True
+    assert full.summary()["stopped_early"] is False
+    assert full.summary()["checks"] == full.info.get("checks")
+    if full.checks():  # envs that report checks (info["checks"])
+        failed = [c.describe() for c in full.checks() if not c.passed]
+        assert failed and full.failure_reason.startswith(f"task not achieved: {failed[0]}")
 
 
 def test_env_is_reused_between_calls():

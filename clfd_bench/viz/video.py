@@ -41,6 +41,7 @@ __all__ = [
     "OverlayRenderer",
     "VideoStyle",
     "VideoWriter",
+    "closing_frame",
     "comparison_grid",
     "comparison_path",
     "frame_camera",
@@ -527,6 +528,57 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
     finally:
         overlay.close()
     return result, count[0]
+
+
+def closing_frame(env: Any, trajectory: Any, demo: int, *, demonstration: Any | None = None,
+                  style: VideoStyle | None = None, settle_s: float | None = None):
+    """Executes ``trajectory`` from demo ``demo``'s start to its horizon and renders only its
+    closing frame: the final state, with the demonstration (green), the prediction (orange)
+    and the tool's whole path (blue; writing: the ink) drawn in, from the camera a video of
+    the rollout would use (framing the path, the robot and the props wherever they went).
+
+    Args:
+        env: a clfd-bench env (no render mode needed; e.g. ``env_pool.get_env(id)``).
+        trajectory: what ``clfd_bench.execution.execute.execute`` takes (data units).
+        demo: the demo to reset to.
+        demonstration: the demonstration in the same form (optional).
+        style: size and look (its caption and hold settings are not used).
+        settle_s: seconds of settling after the trajectory (default: the rollout's).
+
+    Returns:
+        ``(ExecResult with its trace, frame [H, W, 3] uint8)``.
+    """
+    import types
+
+    from clfd_bench.execution.execute import execute
+    from clfd_bench.execution.trace import tool_path
+
+    style = style or VideoStyle()
+    base = env.unwrapped
+    result = execute(env, trajectory, demo, trace=True, settle_s=settle_s)
+    tr = result.trace
+    target = tool_path(base, trajectory)
+    static = [(target, PREDICTION_RGBA)]
+    if demonstration is not None:
+        static.insert(0, (tool_path(base, demonstration), DEMONSTRATION_RGBA))
+    moving = [] if _is_writing(base) else [
+        _inflate(tr.hand_pos[::style.every], _ROBOT_REACH), _inflate(_robot_points(base),
+                                                                     _ROBOT_REACH),
+        *(_inflate(pose[::style.every, :3], _PROP_REACH) for pose in tr.objects.values())]
+    extra = np.concatenate([np.zeros((0, 3)), *moving, *(p for p, _ in static[:-1])])
+    camera = _camera_for(base, target, extra, style.width / style.height)
+    overlay = OverlayRenderer(base.model, dataclasses.replace(style, caption=False), camera)
+    try:
+        overlay.start(static, expected_steps=len(tr.time),
+                      lift=_BOARD_LIFT if _is_writing(base) else 0.0)
+        flags = [None] * len(tr.time) if tr.tool_down is None else [bool(f) for f in
+                                                                    tr.tool_down]
+        recorded = types.SimpleNamespace(tool_positions=list(tr.tool_pos),
+                                         tool_down_flags=flags)
+        frame = overlay(base, recorded)
+    finally:
+        overlay.close()
+    return result, frame
 
 
 def text_for_letters(learned: Sequence[str], text: str = HELLO_WORLD) -> str:
