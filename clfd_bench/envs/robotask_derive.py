@@ -307,8 +307,10 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "something else, and below the 7 cm of a plate standing on its rim"),
         "max_rack_shift": _knock_argument(
             "dish rack", f"{_REPLAYED} the rack moves at most 0.2 mm (settling)",
-            "(shortcut, rush-wait) move it 7-24 cm", "1 cm is 7 % of the 13 x 14.5 cm rack, "
-            "the smallest shift a comparison of the first and last frames shows"),
+            "(shortcut, rush-wait) move it 7-24 cm", "1 cm is 7 % of the 13 x 14.5 cm rack. "
+            "Where an observer would not sign it: learned executions (the RoboTasks fast grid) "
+            "bump the rack 1.2-2.8 cm while laying the plate flat on the platform, and the "
+            "closing frame shows the rack in place (only the video shows the bump)"),
         "max_rack_tilt_deg": (
             "observer: the rack is not tipped. It may tilt at most this far (deg) at any step. "
             f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
@@ -337,8 +339,9 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             f"{_REPLAYED}); 1 cm up, the foot rests on something else"),
         "max_tray_shift": _knock_argument(
             "drying tray", f"{_REPLAYED} the tray moves at most 0.1 mm (settling)",
-            "(shortcut, rush-wait) move it 6.8-11 cm", "1 cm is 4 % of the 25 x 13 cm tray, "
-            "the smallest shift a comparison of the first and last frames shows"),
+            "(shortcut, rush-wait) move it 6.8-11 cm", "1 cm is 4 % of the 25 x 13 cm tray; "
+            "the nearest must-fail rollout moved it 1.03 cm (mirror, which also hits the tray's "
+            "wall)"),
         "max_tray_tilt_deg": (
             "observer: the tray is not tipped. It may tilt at most this far (deg) at any step. "
             f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
