@@ -61,7 +61,11 @@ the robot stands on it, on a mount when the table is lower than the robot's base
 is a collision plane (the Menagerie floor, moved and hidden in geom group 3) drawn as a wooden
 top on four legs above the room's floor.
 
-`success` only reads the records `track` keeps, so it is cheap at every step.
+`success` only reads the records `track` keeps, so it is cheap at every step. The openbox,
+bottle2shelf, platestandingtolying, pouring, wineglass, pan2stove and obstaclerotate scenes
+return the criteria above as `info["checks"]`: one `clfd_bench.envs.checks.Check` (as JSON) per
+criterion, with its measured value and bound in m, deg or counts; their success is exactly all
+of them passing (`docs/execution.md`, "Where every bound comes from").
 `clfd_bench.execution.rollout.rollout` decides after the trajectory and the settling time.
 """
 
