@@ -28,10 +28,10 @@ For a task with demos D_1..D_N ([T, 2] each, data units; the board is `sim_scale
   task end at the same point (spread 0 there), so the bound is sized by what an observer
   compares an end gap with, the letter: a stroke stopping short of (or running past) the end
   by a tenth of the letter's size still finishes the letter, while a letter cut short or
-  drifting away (`drift`: 15 % of the size, >= 2 cm) ends well outside. It is never more than
-  the coverage radius (an end farther from the target's end than the demonstrators' strokes
-  lie from one another is another stroke), and never less than the floor (1 cm on the board:
-  3 mm of noise and tracking error must pass).
+  drifting away (`drift`: 15 % of the size, >= 2 cm) ends outside (1.1x the bound at the
+  least). It is never more than the coverage radius (an end farther from the target's end
+  than the demonstrators' strokes lie from one another is another stroke), and never less
+  than the floor (1 cm on the board: 3 mm of noise and tracking error must pass).
 - `max_dwell` = min(dwell_cap, dwell_factor × max over k of dwell(D_k)), where dwell(D_k) is
   the fraction of the samples of D_k, followed by the 1 s (60 samples) the pen holds its last
   point in a default rollout, that lie within `dwell_radius` (1 cm on the board) of the last
