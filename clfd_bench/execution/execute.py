@@ -186,7 +186,7 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
         env: a clfd-bench env (e.g. from :func:`get_env`; with ``record``, made with
             ``render=True``).
         trajectory: ``[T, D]`` in the dataset's units (see :func:`execute_predictions`); for
-            ``clfd/HelloWorld-v2`` one ``[T_k, 2]`` array per letter.
+            ``clfd/HelloWorld-v3`` one ``[T_k, 2]`` array per letter.
         demo: the demo to reset to (``reset(options={"demo": demo})``).
         record: keep the env's own rendered frames in ``ExecResult.frames`` (``fps`` per
             simulated second).

@@ -4,7 +4,7 @@
 after the last learned task), executes each selected task's prediction for one demo in its env
 and renders the rollout offscreen (EGL when ``MUJOCO_GL=egl``) to mp4 with imageio-ffmpeg:
 one video per task, one "all tasks" video joining them (the paper's Fig. 1), and for HelloWorld
-runs the text written with the learned letters in ``clfd/HelloWorld-v2``.
+runs the text written with the learned letters in ``clfd/HelloWorld-v3``.
 
 Drawn into the scene (MuJoCo user geoms added after ``update_scene``): the prediction (orange)
 and the demonstration (green) as the tool should follow them, the tool's path so far (blue;
@@ -650,7 +650,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
         rerun_path: also log the rendered rollouts to this ``.rrd`` file.
         all_tasks_video: with several tasks, also write one video of all of them in order.
         hello_world: for HelloWorld runs with all tasks selected, also write the text
-            ("hello world", or its learned letters) with ``clfd/HelloWorld-v2``.
+            ("hello world", or its learned letters) with ``clfd/HelloWorld-v3``.
 
     Returns:
         The written files: ``{run}_task{j}_{name}_demo{d}.mp4`` per task, then
@@ -729,7 +729,7 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
                       out_dir: str | os.PathLike[str] = "videos", *,
                       style: VideoStyle | None = None) -> Path | None:
     """Renders only the HelloWorld text ("hello world", or the letters learned so far) written
-    with ``clfd/HelloWorld-v2`` from a HelloWorld run's predictions after its last task.
+    with ``clfd/HelloWorld-v3`` from a HelloWorld run's predictions after its last task.
 
     Returns:
         The mp4's path, or None when the run learned none of the text's letters.
@@ -751,13 +751,13 @@ def _render_text(saved: Any, stem: str, out_dir: Path, names: Sequence[str],
                  preds: dict[int, np.ndarray],
                  demos: dict[int, np.ndarray], demo: int, style: VideoStyle,
                  logger: Any) -> Path | None:
-    """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v2``)."""
+    """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v3``)."""
     from clfd_bench.execution.env_pool import get_env
 
     text = text_for_letters(names)
     if not text:
         return None
-    env = get_env("clfd/HelloWorld-v2", text=text)
+    env = get_env("clfd/HelloWorld-v3", text=text)
     base = env.unwrapped
     if not 0 <= demo < base.num_demos:
         return None
