@@ -12,7 +12,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from clfd_bench.kernels import pin_thread_invariant_kernels
 from clfd_bench.version import __version__
+
+# Before any torch computation: MKL's results independent of the thread count (kernels.py).
+pin_thread_invariant_kernels()
 
 __all__ = ["__version__", "score_predictions"]
 

@@ -27,7 +27,7 @@ substep and checks the controller's limits between IK and physics.)
 
 **Specs.** `action_spec()`: a `BoundedArray` with the Gymnasium action `Box`'s shape, dtype and
 bounds (RoboTasks [8]: position m, quaternion w x y z, gripper 1 = closed; writing [2]: pen
-point on the board; `HelloWorld-v2` [3]). `observation_spec()`: a dict with one spec per
+point on the board; `HelloWorld-v3` [3]). `observation_spec()`: a dict with one spec per
 entry of the Gymnasium `Dict` observation (`ee_pos` [3], `ee_quat` [4], `qpos` [7], `qvel` [7]
 and the task's entries): a `BoundedArray` with the `Box`'s bounds when it has a finite one, an
 `Array` when it is unbounded. `reward_spec()`: a scalar in [0, 1] (the envs' sparse reward:

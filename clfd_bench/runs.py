@@ -75,7 +75,7 @@ FAILED_FILE = "failed.json"
 LOCK_FILE = ".lock"
 #: The keys of ``results.json`` that execution in simulation writes.
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")
-_CACHE_SCHEMA = 2  # 2: summaries carry failure_kind
+_CACHE_SCHEMA = 3  # 2: summaries carry failure_kind; 3: checks and stopped_early
 
 
 class RunFileError(ValueError):

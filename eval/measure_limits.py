@@ -82,7 +82,7 @@ def format_report(cal: Calibration, rtol: float = RTOL) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", nargs="+", default=None, metavar="ID",
-                        help="a subset of env ids (e.g. clfd/HelloWorld-l-v2); the comparison "
+                        help="a subset of env ids (e.g. clfd/HelloWorld-l-v3); the comparison "
                              "then only informs (exit 0)")
     parser.add_argument("--demos", nargs="+", type=int, default=None, metavar="J",
                         help="a subset of demo indices (quick runs; exit 0)")

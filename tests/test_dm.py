@@ -73,7 +73,7 @@ def test_every_id_has_a_conformance_class():
     assert dm.names() == [i.split("/", 1)[1] for i in ENV_IDS]
 
 
-@pytest.mark.parametrize("env_id", ["clfd/PlateStacking-v2", "clfd/LASA-Angle-v2"])
+@pytest.mark.parametrize("env_id", ["clfd/PlateStacking-v2", "clfd/LASA-Angle-v3"])
 def test_step_types_and_discounts(env_id):
     """Time limit: LAST with discount 1.0; a refused command: LAST with discount 0.0; the
     step after LAST starts an episode."""
@@ -101,7 +101,7 @@ def _gym(env_id: str):
         return gym.make(env_id).unwrapped
 
 
-@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v2", "clfd/HelloWorld-e-v2"])
+@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v2", "clfd/HelloWorld-e-v3"])
 def test_same_observations_and_rewards_as_gymnasium(env_id):
     """Same seed (the demo is drawn with it), same actions: the same observations, rewards and
     ends as the Gymnasium env, bit for bit (one implementation)."""
@@ -150,7 +150,7 @@ def _replay(env_id: str, trajectory: np.ndarray, demo: int
 
 
 @pytest.mark.parametrize(("env_id", "demo"), [("clfd/PlateStacking-v2", 2),
-                                              ("clfd/HelloWorld-h-v2", 1)])
+                                              ("clfd/HelloWorld-h-v3", 1)])
 def test_demo_replay_succeeds_and_a_shortcut_fails(env_id, demo):
     gym_env = _gym(env_id)
     trajectory = gym_env.demo_trajectory(demo)

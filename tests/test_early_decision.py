@@ -17,7 +17,7 @@ from clfd_bench.execution.execute import execute
 from clfd_bench.execution.replay import families_for, replay_trajectory
 from clfd_bench.execution.rollout import rollout
 
-ENVS = ("clfd/LASA-Angle-v2", "clfd/HelloWorld-h-v2")
+ENVS = ("clfd/LASA-Angle-v3", "clfd/HelloWorld-h-v3")
 #: Families whose ink leaves the tolerance tube: they must be decided before the horizon.
 LEAVE_TUBE = ("shortcut", "rush-wait", "mirror", "drift")
 
@@ -58,7 +58,7 @@ def test_early_and_full_rollouts_agree_on_every_family(env_id):
 
 
 def test_a_detour_is_decided_where_it_leaves_the_tube():
-    env = get_env("clfd/HelloWorld-e-v2")
+    env = get_env("clfd/HelloWorld-e-v3")
     base = env.unwrapped
     demo = base.demo_trajectory(2).copy()
     bound = base.tolerances.hausdorff
@@ -79,7 +79,7 @@ def test_a_detour_is_decided_where_it_leaves_the_tube():
 
 
 def test_pen_off_the_board_is_decided_once_the_ink_fraction_cannot_recover(monkeypatch):
-    env = get_env("clfd/LASA-Angle-v2")
+    env = get_env("clfd/LASA-Angle-v3")
     base = env.unwrapped
     monkeypatch.setattr(base, "_inking", lambda: False)  # the pen never touches the board
     traj = base.demo_trajectory(1)
@@ -95,7 +95,7 @@ def test_pen_off_the_board_is_decided_once_the_ink_fraction_cannot_recover(monke
 
 
 def test_recording_tracing_and_the_decision_state_keep_the_whole_episode():
-    env = get_env("clfd/LASA-Angle-v2")
+    env = get_env("clfd/LASA-Angle-v3")
     base = env.unwrapped
     traj = replay_trajectory(base, 0, "rush-wait")
     traced = execute(env, traj, 0, trace=True)  # a trace shows the whole rollout

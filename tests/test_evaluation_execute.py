@@ -44,15 +44,23 @@ def test_true_demo_succeeds_reversed_demo_fails(letter_h):
     assert wrong.failure_reason.startswith("task failed, decided after")
     assert "Hausdorff tolerance" in wrong.failure_reason and wrong.steps < 1060
     # ... or, executed to the end, with every measure of the ink.
-    env = get_env("clfd/HelloWorld-h-v2")
+    env = get_env("clfd/HelloWorld-h-v3")
     full = execute(env, mirrored, 1, stop_when_decided=False)
     assert not full.success and full.failure_kind == "task" and full.steps == 1060
     assert full.failure_reason.startswith("task not achieved")
     assert "dtw=" in full.failure_reason
+    # The summary (what the sim cache stores) says which rollout stopped early and keeps the
+    # env's final checks; a task failure's reason names the failed checks first.
+    assert wrong.summary()["stopped_early"] is True
+    assert full.summary()["stopped_early"] is False
+    assert full.summary()["checks"] == full.info.get("checks")
+    if full.checks():  # envs that report checks (info["checks"])
+        failed = [c.describe() for c in full.checks() if not c.passed]
+        assert failed and full.failure_reason.startswith(f"task not achieved: {failed[0]}")
 
 
 def test_env_is_reused_between_calls():
-    assert get_env("clfd/HelloWorld-h-v2") is get_env("clfd/HelloWorld-h-v2")
+    assert get_env("clfd/HelloWorld-h-v3") is get_env("clfd/HelloWorld-h-v3")
 
 
 def test_bad_predictions_are_refused(letter_h):
@@ -69,7 +77,7 @@ def test_bad_predictions_are_refused(letter_h):
 
 
 def test_tool_path_of_a_letter_lies_on_the_board(letter_h):
-    base = get_env("clfd/HelloWorld-h-v2").unwrapped
+    base = get_env("clfd/HelloWorld-h-v3").unwrapped
     path = tool_path(base, letter_h[0])
     assert path.shape == (letter_h.shape[1], 3)
     np.testing.assert_allclose(path[:, :2], letter_h[0])  # HelloWorld data are board metres

@@ -57,7 +57,7 @@ def test_evaluate_run_writes_success_and_keeps_everything_else(tiny_run, tmp_pat
     assert after["sim_accuracy"][0][1] is None
     assert set(after["sim_cl_metrics"]) == {"ACC", "REM", "BWT"}
     sim = after["sim"]
-    assert sim["env_ids"] == {"h": "clfd/HelloWorld-h-v2", "e": "clfd/HelloWorld-e-v2"}
+    assert sim["env_ids"] == {"h": "clfd/HelloWorld-h-v3", "e": "clfd/HelloWorld-e-v3"}
     assert sim["mujoco"] and sim["mink"] and sim["fingerprint"]
     assert sim["rollouts"] == 3 * n
     # SG keeps task 0's model: its prediction after task 1 is the same, executed once.

@@ -35,20 +35,20 @@ def test_families_on_every_env(env_id):
 
 
 def test_a_shortcut_of_a_straight_line_is_no_wrong_trajectory():
-    env = gym.make("clfd/LASA-Line-v2", disable_env_checker=True)
+    env = gym.make("clfd/LASA-Line-v3", disable_env_checker=True)
     try:
-        (short,) = replay("clfd/LASA-Line-v2", [0], "shortcut", env=env)
-        (rev,) = replay("clfd/LASA-Line-v2", [0], "reverse", env=env)
+        (short,) = replay("clfd/LASA-Line-v3", [0], "shortcut", env=env)
+        (rev,) = replay("clfd/LASA-Line-v3", [0], "reverse", env=env)
     finally:
         env.close()
     assert not short.applicable and rev.applicable and not rev.success
 
 
 def test_families_on_the_text_env():
-    env = gym.make("clfd/HelloWorld-v2", text="lo", disable_env_checker=True)
+    env = gym.make("clfd/HelloWorld-v3", text="lo", disable_env_checker=True)
     try:
         for family in ("demo", "slower", "noise", "mirror", "rush-wait", "teleport"):
-            (rec,) = replay("clfd/HelloWorld-v2", [2], family, env=env)
+            (rec,) = replay("clfd/HelloWorld-v3", [2], family, env=env)
             assert rec.success == (FAMILIES[family].expect == "succeed"), (family, rec.info)
     finally:
         env.close()

@@ -15,7 +15,7 @@ GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[
             tasks=2, sim=True)
 
 # Wall-clock columns differ between any two runs; everything else must be identical.
-CLOCK_KEYS = {"TE", "CL_score", "CL_stability", "exec_CL_score", "train_time_s"}
+CLOCK_KEYS = {"TE", "CL_score", "CL_stability", "exec_CL_score", "train_time_s", "train_cpu_s"}
 
 
 def _table(out):

@@ -30,7 +30,7 @@ from clfd_bench.sim import limits as L
 from clfd_bench.sim.limits import filter_gain
 
 DT = 1.0 / 60.0
-LETTER = "clfd/HelloWorld-l-v2"
+LETTER = "clfd/HelloWorld-l-v3"
 
 
 def _stream(pos: np.ndarray, quat: np.ndarray, q: np.ndarray) -> CommandStream:
@@ -59,7 +59,7 @@ def _synthetic_record(stream: CommandStream) -> RolloutMeasurement:
 def test_env_list_is_the_822_replays():
     ids = calibration_env_ids()
     assert len(ids) == 4 + 7 + 26  # RoboTasks, HelloWorld letters, LASA shapes
-    assert "clfd/HelloWorld-v2" not in ids and LETTER in ids
+    assert "clfd/HelloWorld-v3" not in ids and LETTER in ids
     later = ("clfd/WineGlass-", "clfd/PanToStove-", "clfd/ObstacleRotate-",
              "clfd/MatFolding-", "clfd/Scoop-")  # added since
     assert not any(i.startswith(later) for i in ids)

@@ -39,8 +39,11 @@ def test_results_schema_predictions_and_checkpoint(tmp_path):
     assert results["schema_version"] == 1 and results["complete"]
     assert results["tasks"] == ["h", "e"] and results["tasks_done"] == 2
     assert results["config"]["method"] == "rep" and results["config"]["tasks"] == 2
-    for key in ("train_time_s", "num_params", "stored_samples"):
+    for key in ("train_time_s", "train_cpu_s", "num_params", "stored_samples"):
         assert len(results[key]) == 2
+    # CPU seconds of this process per task: spent, and not more than 2 threads' worth
+    assert all(0 < c <= 2 * w + 0.5 for c, w in zip(results["train_cpu_s"],
+                                                      results["train_time_s"], strict=True))
     assert results["stored_samples"] == [8 * 1000, 2 * 8 * 1000]
     for metric in ("dtw", "frechet", "swept_area"):
         rows = results["errors"][metric]
@@ -106,6 +109,7 @@ def test_killed_run_resumes_after_last_finished_task(tmp_path):
     assert not any("another CPU" in m for m in messages)  # resumed where it started
     assert resumed["errors"] == reference["errors"]
     assert resumed["train_time_s"][0] == partial["train_time_s"][0]
+    assert resumed["train_cpu_s"][0] == partial["train_cpu_s"][0]
 
 
 def test_a_run_resumed_on_another_cpu_says_so_and_records_where_each_task_was_learned(

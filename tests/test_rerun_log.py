@@ -14,7 +14,7 @@ from clfd_bench.viz.rerun_log import RolloutLogger, rrd_entity_paths
 
 def test_rrd_opens_with_rerun_and_holds_the_rollout(tmp_path):
     demos = np.asarray(load_dataset("helloworld").tasks[0].demos)  # 'h'
-    env = get_env("clfd/HelloWorld-h-v2")
+    env = get_env("clfd/HelloWorld-h-v3")
     ok = execute(env, demos[0], 0, trace=True)
     bad = execute(env, demos[0, ::-1], 0, trace=True)
     path = tmp_path / "logs" / "rollouts.rrd"
@@ -43,7 +43,7 @@ def test_rrd_opens_with_rerun_and_holds_the_rollout(tmp_path):
 def test_logger_refuses_wrong_suffix_and_missing_trace(tmp_path):
     with pytest.raises(ValueError, match=r"end in \.rrd"):
         RolloutLogger(tmp_path / "log.txt")
-    env = get_env("clfd/HelloWorld-h-v2")
+    env = get_env("clfd/HelloWorld-h-v3")
     demos = np.asarray(load_dataset("helloworld").tasks[0].demos)
     res = execute(env, demos[0, :120], 0, settle_s=0.0)
     log = RolloutLogger(tmp_path / "x.rrd")

@@ -31,6 +31,24 @@ def envs():
         env.close()
 
 
+#: The envs whose scenes report `info["checks"]` (MatFolding and Scoop: not yet).
+CHECKED = ("openbox", "bottle2shelf", "platestandingtolying", "pouring", "wineglass",
+           "pan2stove", "obstaclerotate")
+
+
+def _checks(info):
+    """{name: check dict} of an info's `checks`, after asserting that success is exactly all
+    of them passing."""
+    checks = {c["name"]: c for c in info["checks"]}
+    assert len(checks) == len(info["checks"]), "check names must be unique"
+    assert info["is_success"] is all(c["passed"] for c in checks.values()), info["checks"]
+    return checks
+
+
+def _failed(info):
+    return sorted(name for name, c in _checks(info).items() if not c["passed"])
+
+
 def _run(env, family, demo, other_task=None):
     base = env.unwrapped
     ctx = PerturbContext(demo=demo, other=None if other_task is None else np.asarray(
@@ -46,6 +64,10 @@ def test_demos_succeed_holding_their_prop_until_the_gripper_opens(envs, task):
         assert r.info["release_reason"] in ("opened", None), r.info  # pouring never lets go
         assert r.info["grip_load_max"] < 1.0
         assert np.nanmax(r.tracking_error_pos) < 0.02
+        if task in CHECKED:  # every criterion measured and passed, in SI units
+            checks = _checks(r.info)
+            assert all(c["passed"] and c["value"] is not None for c in checks.values())
+            assert {c["unit"] for c in checks.values()} <= {"m", "deg", ""}
 
 
 def test_a_lid_opened_without_turning_the_hand_slips_out_and_stays_shut_enough(envs):
@@ -69,6 +91,9 @@ def test_a_bottle_dropped_from_higher_than_the_demos_fails(envs):
     r = rollout(env, traj, demo=2)
     assert not r.success and r.info["release_reason"] == "opened"
     assert r.info["release_height"] > env.unwrapped.spec_doc["success"]["max_release_height"]
+    assert _failed(r.info) == ["release_height"]  # the rest of the placement is fine
+    check = _checks(r.info)["release_height"]
+    assert check["value"] > check["bound"] and check["unit"] == "m"
 
 
 def test_a_bottle_swung_straight_at_the_shelf_hits_it(envs):
@@ -90,6 +115,7 @@ def test_beans_poured_off_target_fail(envs):
     offset = r.info["pour_offset"]  # None: nothing left the cup
     assert (r.info["spilled_fraction"] > c["max_spilled_fraction"]
             or offset is None or offset > c["pour_radius"]), r.info
+    assert set(_failed(r.info)) & {"beans_spilled", "pour_offset", "beans_in_container"}
 
 
 def test_a_glass_swung_straight_at_the_shelf_drags_it_through_its_tray(envs):
@@ -99,6 +125,7 @@ def test_a_glass_swung_straight_at_the_shelf_drags_it_through_its_tray(envs):
         r = _run(envs["wineglass"], "shortcut", demo)
         assert not r.success
         assert not r.info["tray_in_place"] and r.info["release_reason"] == "slipped", r.info
+        assert {"tray_shift", "let_go"} <= set(_failed(r.info))
 
 
 def test_a_glass_carried_lying_down_is_not_stood_upright(envs):
@@ -158,6 +185,9 @@ def test_a_box_carried_around_the_obstacle_without_turning_it_fails(envs):
     r = _run(envs["obstaclerotate"], "frozen-orientation", 5)
     assert not r.success and r.info["obstacle_touched_by"] is None
     assert r.info["release_reason"] == "opened" and r.info["object_max_turn_deg"] < 1.0
+    turn = _checks(r.info)["turn"]
+    assert not turn["passed"] and turn["value"] < 1.0 < turn["bound"] and turn["unit"] == "deg"
+    assert _checks(r.info)["obstacle_untouched"]["passed"]
 
 
 def test_a_mat_folded_while_dragged_5_cm_off_is_not_where_the_demo_leaves_it(envs):

@@ -249,6 +249,11 @@ def test_openbox_success_needs_the_grasp_to_open_the_lid_and_let_go(envs):
         assert ok is expected, (held_max, reason, info)
 
 
+def _failed(info):
+    """The names of the failed checks in `info["checks"]` (success is all of them passing)."""
+    return [c["name"] for c in info["checks"] if not c["passed"]]
+
+
 def _release_record(env, height, offset):
     env.scene.record.update({"release_height": height, "release_offset": offset})
     env.grasp.release(env.data, "opened")
@@ -262,23 +267,29 @@ def test_bottle_success_needs_a_low_release_where_the_demos_release_and_lying(en
     top = np.asarray(env.spec_doc["scene"]["shelf_top"])
     lying = _quat_about([1.0, 0.0, 0.0], np.pi / 2)  # bottle axis (its z) along -y
     on_shelf = top + [0.0, 0.05, 0.028]
-    cases = [
-        ("placed", 0.03, 0.005, on_shelf, lying, True),
+    cases = [  # (name, release height, release offset, pos, quat, the failed checks)
+        ("placed", 0.03, 0.005, on_shelf, lying, []),
         ("dropped from too high", c["max_release_height"] + 0.01, 0.005, on_shelf, lying,
-         False),
-        ("let go elsewhere", 0.03, c["place_radius"] + 0.01, on_shelf, lying, False),
+         ["release_height"]),
+        ("let go elsewhere", 0.03, c["place_radius"] + 0.01, on_shelf, lying,
+         ["release_offset"]),
         ("standing on the shelf", 0.03, 0.005, top + [0.0, 0.0, 0.035],
-         np.array([0.0, 1.0, 0.0, 0.0]), False),
-        ("lying on the table", 0.03, 0.005, np.array([0.2, 0.3, 0.02]), lying, False),
+         np.array([0.0, 1.0, 0.0, 0.0]), ["tilt", "rest_height_min"]),  # (sunk into it)
+        ("lying on the table", 0.03, 0.005, np.array([0.2, 0.3, 0.02]), lying,
+         ["on_shelf", "rest_height_min"]),
     ]
-    for name, height, offset, pos, quat, expected in cases:
+    for name, height, offset, pos, quat, failed in cases:
         _release_record(env, height, offset)
         set_free_pose(env.model, env.data, bottle, pos, quat)
         mujoco.mj_forward(env.model, env.data)
         ok, info = env.scene.success(env.data, env.grasp)
-        assert ok is expected, (name, info)
+        assert ok is (not failed) and _failed(info) == failed, (name, info)
     env.grasp.release_reason = "slipped"
-    assert env.scene.success(env.data, env.grasp)[0] is False
+    ok, info = env.scene.success(env.data, env.grasp)
+    assert ok is False and _failed(info) == ["let_go", "on_shelf", "rest_height_min"]
+    off = {ch["name"]: ch for ch in info["checks"]}["release_offset"]
+    assert (off["value"], off["bound"], off["op"], off["unit"]) == (0.005, c["place_radius"],
+                                                                    "<=", "m")
 
 
 def test_glass_success_needs_it_standing_upright_on_the_shelf_and_the_tray_untouched(envs):
@@ -614,6 +625,9 @@ def test_plate_success_fails_once_the_rack_was_knocked(envs):
     ok, info = env.scene.success(env.data, env.grasp)
     assert ok is False and info["rack_in_place"] is False
     assert info["max_rack_shift"] == pytest.approx(0.03)
+    assert _failed(info) == ["rack_shift"]
+    shift = info["checks"][0]
+    assert shift["value"] == pytest.approx(0.03) and shift["bound"] == 0.01
 
 
 def test_pouring_success_counts_beans_inside_spilled_and_where_they_were_poured(envs):
@@ -642,7 +656,12 @@ def test_pouring_success_counts_beans_inside_spilled_and_where_they_were_poured(
         sc.record["pour_count"] = n
         ok, info = sc.success(env.data, env.grasp)
         assert ok is expected, (inside, spilled, poured_at, info)
+        assert ok is (not _failed(info))
         assert info["bean_fraction"] == pytest.approx(inside / n)
+        checks = {ch["name"]: ch for ch in info["checks"]}
+        assert checks["beans_in_container"]["value"] == inside  # counted in beans
+        assert checks["beans_in_container"]["bound"] == need
+        assert checks["beans_spilled"]["value"] == spilled
 
 
 def test_a_pickled_env_keeps_holding_its_prop_like_the_original():

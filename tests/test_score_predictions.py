@@ -238,7 +238,8 @@ def test_scored_run_joins_a_leaderboard(grid, ds, tmp_path, capsys):
     assert set(rows) == {"ft", "mine"}
     mine = rows["mine"]["metrics"]
     assert mine["ACC"]["median"] == 1.0 and mine["REM"]["median"] == 1.0
-    for key in ("MS", "TE", "FS", "SSS", "CL_score", "train_time_s", "final_params"):
+    for key in ("MS", "TE", "FS", "SSS", "CL_score", "train_time_s", "train_cpu_s",
+                "final_params"):
         assert mine[key]["median"] is None and mine[key]["values"] == [], key
         assert key in rows["mine"]["not_provided"]
     assert rows["ft"]["metrics"]["FS"]["median"] is not None  # FS of the runs that know it
@@ -247,8 +248,8 @@ def test_scored_run_joins_a_leaderboard(grid, ds, tmp_path, capsys):
                                           "external": True}]
     md = (out / "leaderboard.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("| ") and "| MINE |" in x)
-    # CL_score, CL_stab, MS, TE, FS, SSS, exec CL_score, train s, params
-    assert line.count("—") == 9
+    # CL_score, CL_stab, MS, TE, FS, SSS, exec CL_score, train s, train CPU s, params
+    assert line.count("—") == 10
     capsys.readouterr()
     # A label that is also a grid method is refused before any work.
     ft_run = out / "runs" / DATASET / "ft" / "smoke_nodet_o0_s0_k2_nosim"

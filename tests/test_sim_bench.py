@@ -10,11 +10,11 @@ from clfd_bench.execution.bench import target_for
 
 
 def test_bench_sim_json(capsys):
-    args = argparse.Namespace(env=["clfd/HelloWorld-r-v2"], demo=1, repeats=1, json=True)
+    args = argparse.Namespace(env=["clfd/HelloWorld-r-v3"], demo=1, repeats=1, json=True)
     assert bench_sim._run(args) == 0
     out = json.loads(capsys.readouterr().out)
     (row,) = out["results"]
-    assert row["env"] == "clfd/HelloWorld-r-v2" and row["success"] is True
+    assert row["env"] == "clfd/HelloWorld-r-v3" and row["success"] is True
     assert row["steps"] == 1060 and abs(row["sim_s"] - 1060 / 60) < 1e-9
     assert row["x_realtime"] > 1.0  # far slower than real time would mean something is broken
     assert row["ik_us_per_step"] > 0 and row["physics_us_per_step"] > 0
@@ -24,4 +24,4 @@ def test_bench_sim_json(capsys):
 def test_targets():
     assert target_for("clfd/Pouring-v2") == 30.0
     assert target_for("clfd/MatFolding-v2") == target_for("clfd/Scoop-v2") == 30.0
-    assert target_for("clfd/LASA-Angle-v2") == 50.0
+    assert target_for("clfd/LASA-Angle-v3") == 50.0

@@ -29,7 +29,7 @@ def test_nan_action_raises_naming_entries(pose_env):
 
 
 def test_writing_env_nan_action_raises():
-    env = gym.make("clfd/HelloWorld-l-v2").unwrapped
+    env = gym.make("clfd/HelloWorld-l-v3").unwrapped
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"indices \[1\]"):
         env.step(np.array([0.4, np.nan]))
@@ -88,7 +88,7 @@ def test_reset_options_are_validated(pose_env):
 
 
 def test_render_rgb_array():
-    env = gym.make("clfd/HelloWorld-o-v2", render_mode="rgb_array", width=160, height=120)
+    env = gym.make("clfd/HelloWorld-o-v3", render_mode="rgb_array", width=160, height=120)
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8

@@ -95,7 +95,7 @@ def test_caption_names_the_method_task_and_outcome(tiny_run):
     caption = run_caption(run, "task 0 'h'", 0)
     assert caption == "SG · task 0 'h' · demo 0"
     demos = load_dataset("helloworld").tasks
-    env = get_env("clfd/HelloWorld-h-v2")
+    env = get_env("clfd/HelloWorld-h-v3")
     frames: list[np.ndarray] = []
     wrong = np.asarray(demos[1].demos)[0]  # an 'e'
     result, count = render_rollout(env, wrong, 0, [frames.append], caption=caption, style=STYLE)
@@ -152,7 +152,7 @@ def test_rollout_video_decodes_with_expected_frames(tmp_path):
     demos = np.asarray(load_dataset("helloworld").tasks[1].demos)  # 'e'
     writer = VideoWriter(tmp_path / "e.mp4", STYLE.fps)
     frames: list[np.ndarray] = []
-    result, count = render_rollout(get_env("clfd/HelloWorld-e-v2"), demos[0], 0,
+    result, count = render_rollout(get_env("clfd/HelloWorld-e-v3"), demos[0], 0,
                                    [writer.append, frames.append], demonstration=demos[0],
                                    caption="e", style=STYLE)
     path = writer.close()
@@ -188,7 +188,7 @@ def test_run_videos(tiny_run, tmp_path):
     assert len(iio.imread(paths[0])) == per_task
     assert len(iio.imread(paths[1])) == per_task
     assert len(iio.imread(paths[2])) == 2 * per_task
-    text_env = get_env("clfd/HelloWorld-v2", text="he").unwrapped
+    text_env = get_env("clfd/HelloWorld-v3", text="he").unwrapped
     steps = len(text_env.trajectory_to_actions([np.zeros((1000, 2))] * 2)) + 60
     assert len(iio.imread(paths[3])) == STYLE.frames_for(steps)
     assert not list(out.glob(".*"))  # no temporary files left

@@ -11,19 +11,22 @@ import pytest
 
 import clfd_bench  # noqa: F401
 from clfd_bench.data import load_dataset
+from clfd_bench.envs.checks import Check
 from clfd_bench.envs.registration import env_id_for, lasa_env_name
 from clfd_bench.envs.writing import (
+    SHAPE_CHECKS,
     ShapeTolerances,
     judge_shape,
     load_tolerances,
     load_writing_spec,
     min_jerk,
 )
+from clfd_bench.envs.writing_derive import demo_size
 from clfd_bench.metrics.trajectory import coverage, hausdorff
 
 
 def test_reset_puts_the_pen_down_at_the_demo_start():
-    env = gym.make("clfd/HelloWorld-w-v2").unwrapped
+    env = gym.make("clfd/HelloWorld-w-v3").unwrapped
     obs, info = env.reset(seed=0, options={"demo": 4})
     assert info["demo"] == 4
     np.testing.assert_allclose(obs["pen_tip"][:2], env.demos[4, 0], atol=1e-3)
@@ -37,7 +40,7 @@ def test_reset_puts_the_pen_down_at_the_demo_start():
 def test_actions_are_clipped_to_the_board():
     # A jump to the board's edge breaks the Panda's motion limits (a reflex); switched off here,
     # where only the clipping is tested.
-    env = gym.make("clfd/LASA-Line-v2", limits=None).unwrapped
+    env = gym.make("clfd/LASA-Line-v3", limits=None).unwrapped
     env.reset(seed=0, options={"demo": 0})
     for _ in range(90):
         obs, *_ = env.step(np.array([5.0, 0.0]))  # far beyond the board edge x = 0.75
@@ -49,7 +52,7 @@ def test_actions_are_clipped_to_the_board():
 
 
 def test_lifted_pen_leaves_no_ink():
-    env = gym.make("clfd/HelloWorld-v2", text="l").unwrapped
+    env = gym.make("clfd/HelloWorld-v3", text="l").unwrapped
     env.reset(seed=0, options={"demo": 0})
     start = env.letter_to_surface(0, env.demo_letters(0)[0][0])
     for lift in np.concatenate([min_jerk(24), np.ones(30)]):
@@ -61,7 +64,7 @@ def test_lifted_pen_leaves_no_ink():
 
 
 def test_lasa_goal_is_centred_placement():
-    env = gym.make("clfd/LASA-Angle-v2").unwrapped
+    env = gym.make("clfd/LASA-Angle-v3").unwrapped
     demos = env.demos
     xy = env.to_surface(demos)
     centre = (xy.min(axis=(0, 1)) + xy.max(axis=(0, 1))) / 2
@@ -72,7 +75,7 @@ def test_lasa_goal_is_centred_placement():
 
 
 def test_text_layout_places_letters_along_a_line():
-    env = gym.make("clfd/HelloWorld-v2").unwrapped
+    env = gym.make("clfd/HelloWorld-v3").unwrapped
     assert env.letters == list("helloworld")
     actions = env.trajectory_to_actions(env.demo_letters(0))
     assert actions.shape == (env._trajectory_steps(0), 3)
@@ -122,16 +125,20 @@ def test_hausdorff_and_coverage_by_hand():
 
 
 def _judge(path: np.ndarray, target: np.ndarray, tol: ShapeTolerances) -> dict:
-    return judge_shape(path, path, target, target[-1], tol, dtw_threshold=18.21,
-                       goal_tolerance=0.01)
+    return judge_shape(path, path, target, target[-1], tol, dtw_threshold=18.21)
+
+
+def _tol(**kw: float) -> ShapeTolerances:
+    base = dict(hausdorff=0.015, coverage_radius=0.01, min_coverage=0.9, max_dwell=0.5,
+                goal_tolerance=0.01, dwell_radius=0.01)
+    return ShapeTolerances(**{**base, **kw})
 
 
 def test_judge_shape_on_synthetic_letters():
     # A 'u' of 10 cm (metres, HelloWorld units), 600 samples.
     s = np.linspace(0, np.pi, 600)
     u = np.column_stack([0.05 * (1 - np.cos(s)), -0.1 * np.sin(s)])
-    tol = ShapeTolerances(hausdorff=0.015, coverage_radius=0.01, min_coverage=0.9,
-                          max_dwell=0.5)
+    tol = _tol()
     assert _judge(u, u, tol)["is_success"]
     slow = np.repeat(u, 2, axis=0)
     assert _judge(slow, u, tol)["is_success"]
@@ -141,6 +148,98 @@ def test_judge_shape_on_synthetic_letters():
     assert _judge(rush, u, tol)["failed"] == ["dwell"]
     half = u[:300]
     assert "goal" in _judge(half, u, tol)["failed"]
+
+
+def _check(res: dict, name: str) -> Check:
+    (c,) = [c for c in res["checks"] if c.name == name]
+    return c
+
+
+def test_judge_shape_near_each_bound():
+    """A 10 cm straight stroke (1001 points, 0.1 mm apart) against hand-computed values: each
+    check passes just inside its bound and fails just outside it, the others unaffected."""
+    x = np.linspace(0.0, 0.1, 1001)
+    line = np.column_stack([x, np.zeros_like(x)])
+    loose = dict(hausdorff=0.05, coverage_radius=0.01, min_coverage=0.5, max_dwell=0.9,
+                 goal_tolerance=0.015)
+    # goal: stop 1.4 / 1.6 cm short of the end (last ink point at x = 0.086 / 0.084).
+    for short, ok in ((140, True), (160, False)):
+        ink = line[: 1001 - short]
+        res = judge_shape(ink, ink, line, line[-1], _tol(**loose), 18.21)
+        goal = _check(res, "goal")
+        assert goal.value == pytest.approx(short * 1e-4) and goal.bound == 0.015
+        assert res["failed"] == ([] if ok else ["goal"]), res["failed"]
+    # hausdorff: one ink point lifted 1.45 / 1.55 cm off the line against 1.5 cm.
+    for lift, ok in ((0.0145, True), (0.0155, False)):
+        ink = line.copy()
+        ink[500, 1] = lift
+        res = judge_shape(ink, ink, line, line[-1], _tol(**{**loose, "hausdorff": 0.015}),
+                          18.21)
+        assert _check(res, "hausdorff").value == pytest.approx(lift)
+        assert res["failed"] == ([] if ok else ["hausdorff"])
+    # coverage: ink along the first 60 % of the line, 1 cm radius: covers 0.7 of its length.
+    ink = line[:601]
+    for least, ok in ((0.69, True), (0.71, False)):
+        res = judge_shape(ink, ink, line, line[-1],
+                          _tol(**{**loose, "min_coverage": least, "goal_tolerance": 0.05}),
+                          18.21)
+        assert _check(res, "coverage").value == pytest.approx(0.7, abs=2e-3)
+        assert res["failed"] == ([] if ok else ["coverage"])
+    # dwell: the pen path rests at the end for 1000 more steps: 1101 of 2001 positions lie
+    # within 1 cm of the last one (the stroke's last 101 + the 1000 resting), 0.5502.
+    path = np.concatenate([line, np.repeat(line[-1:], 1000, axis=0)])
+    for most, ok in ((0.551, True), (0.55, False)):
+        res = judge_shape(line, path, line, line[-1], _tol(**{**loose, "max_dwell": most}),
+                          18.21)
+        assert _check(res, "dwell").value == pytest.approx(1101 / 2001)
+        assert res["failed"] == ([] if ok else ["dwell"])
+    # dtw: an ink 1 mm off the line everywhere sums to 1001 x 1 mm = 1.001.
+    ink = line + [0.0, 0.001]
+    for threshold, ok in ((1.002, True), (1.0, False)):
+        res = judge_shape(ink, ink, line, line[-1], _tol(**loose), threshold)
+        assert _check(res, "dtw").value == pytest.approx(1.001)
+        assert res["failed"] == ([] if ok else ["dtw"])
+
+
+def test_judge_shape_reports_checks_in_metres_on_the_board():
+    """LASA ink is judged in LASA units and reported in metres (0.003 m per unit); a missing
+    ink is not measured and fails."""
+    x = np.linspace(0.0, 30.0, 301)  # LASA units
+    line = np.column_stack([x, np.zeros_like(x)])
+    tol = _tol(hausdorff=5.0, coverage_radius=3.3, goal_tolerance=5.0, dwell_radius=3.3)
+    res = judge_shape(line[:-40], line[:-40], line, line[-1], tol, 2191.0, 0.003)
+    goal = _check(res, "goal")
+    assert res["goal_distance"] == pytest.approx(4.0)  # the info value stays in LASA units
+    assert goal.unit == "m" and goal.value == pytest.approx(0.012) and goal.bound == 0.015
+    assert _check(res, "dtw").bound == pytest.approx(2191.0 * 0.003)
+    assert [c.name for c in res["checks"]] == list(SHAPE_CHECKS) and res["is_success"]
+    empty = judge_shape(line[:1], line[:1], line, line[-1], tol, 2191.0, 0.003)
+    assert empty["failed"] == list(SHAPE_CHECKS)  # dwell too: one position, at rest
+    assert _check(empty, "goal").value is None
+
+
+def test_demo_size_by_hand():
+    a = np.array([[0.0, 0.0], [3.0, 4.0]])  # diagonal 5
+    b = np.array([[0.0, 0.0], [6.0, 8.0]])  # 10
+    c = np.array([[1.0, 1.0], [1.0, 2.0]])  # 1
+    assert demo_size(np.stack([a, b, c])) == pytest.approx(5.0)
+
+
+def test_goal_tolerance_lies_between_what_must_pass_and_drift():
+    """Every task's end bound is its derivation (by hand for 'h': a tenth of its 20.78 cm
+    size, below its 2.61 cm coverage radius), at least the 1 cm floor, and at most 1/1.2 of
+    where the `drift` family ends (15 % of the demo's size, >= 2 cm)."""
+    assert load_tolerances("helloworld", "h").goal_tolerance == pytest.approx(0.020783,
+                                                                                rel=1e-4)
+    for name in ("helloworld", "lasa"):
+        for task in load_dataset(name).tasks:
+            demos = np.asarray(task.demos, dtype=float) * task.sim_scale  # m on the board
+            tol = load_tolerances(name, task.name)
+            goal_m = tol.goal_tolerance * task.sim_scale
+            smallest = np.linalg.norm(demos.max(axis=1) - demos.min(axis=1), axis=-1).min()
+            assert 0.01 - 1e-9 <= goal_m <= tol.coverage_radius * task.sim_scale + 1e-9
+            assert 1.2 * goal_m <= max(0.15 * smallest, 0.02), (name, task.name)
+            assert tol.dwell_radius * task.sim_scale == pytest.approx(0.01)
 
 
 def test_tolerances_equal_their_derivation():
@@ -153,7 +252,8 @@ def test_tolerances_equal_their_derivation():
     for dataset, tasks in derived.items():
         for task, vals in tasks.items():
             tol = load_tolerances(dataset, task)
-            for key in ("hausdorff", "coverage_radius", "min_coverage", "max_dwell"):
+            for key in ("hausdorff", "coverage_radius", "min_coverage", "max_dwell",
+                        "goal_tolerance", "dwell_radius"):
                 assert getattr(tol, key) == pytest.approx(vals[key], rel=1e-5), (dataset, task,
                                                                                  key)
 
@@ -191,9 +291,9 @@ def _project(cam, points: np.ndarray, aspect: float = 4 / 3) -> np.ndarray:
 def test_cameras_frame_the_shape():
     """The shape is in view and spans a good part of the 640 x 480 frame, reading the right way
     round (HelloWorld: the writing direction -x to the right; LASA: +x to the right)."""
-    for env_id, right in (("clfd/HelloWorld-l-v2", -1), ("clfd/HelloWorld-h-v2", -1),
-                          ("clfd/LASA-Worm-v2", 1), ("clfd/LASA-Line-v2", 1),
-                          ("clfd/HelloWorld-v2", -1)):
+    for env_id, right in (("clfd/HelloWorld-l-v3", -1), ("clfd/HelloWorld-h-v3", -1),
+                          ("clfd/LASA-Worm-v3", 1), ("clfd/LASA-Line-v3", 1),
+                          ("clfd/HelloWorld-v3", -1)):
         env = gym.make(env_id).unwrapped
         pts = env._framed_points()
         uv = _project(env.camera(), np.column_stack([pts, np.full(len(pts), 0.1)]))

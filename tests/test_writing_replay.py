@@ -18,7 +18,7 @@ from clfd_bench.envs.writing import ink_strokes
 from clfd_bench.execution.replay import replay
 from clfd_bench.execution.rollout import rollout
 
-LETTERS = ("clfd/HelloWorld-l-v2", "clfd/HelloWorld-h-v2")
+LETTERS = ("clfd/HelloWorld-l-v3", "clfd/HelloWorld-h-v3")
 
 
 @pytest.fixture(scope="module", params=LETTERS)
@@ -37,6 +37,24 @@ def test_demo_succeeds_with_every_check_passing(letter_env):
     assert rec.info["coverage"] == 1.0
     assert rec.info["dwell"] <= tol["max_dwell"]
     assert rec.max_tracking_error_m < 1e-3
+    checks = rec.info["checks"]
+    assert [c["name"] for c in checks] == ["ink_fraction", "dtw", "hausdorff", "coverage",
+                                           "goal", "dwell"]
+    assert all(c["passed"] for c in checks)
+    (goal,) = [c for c in checks if c["name"] == "goal"]
+    assert goal["value"] == pytest.approx(rec.info["goal_distance"])  # letters: m = data units
+    assert goal["bound"] == pytest.approx(tol["goal_tolerance"]) and goal["unit"] == "m"
+
+
+def test_drift_fails_the_end_check_where_the_shape_checks_let_it_pass():
+    # 'w' (14.8 cm): a drift of 2.2 cm stays within its 2.6 cm Hausdorff tolerance; its end,
+    # 2.2 cm off, is beyond the 1.5 cm end bound.
+    env = gym.make("clfd/HelloWorld-w-v3")
+    (rec,) = replay("clfd/HelloWorld-w-v3", [2], "drift", env=env)
+    env.close()
+    assert rec.info["failed"] == ["goal"], rec.info["failed"]
+    (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
+    assert goal["value"] > 1.2 * goal["bound"]
 
 
 @pytest.mark.parametrize("family", ["shortcut", "rush-wait", "mirror"])
@@ -51,28 +69,37 @@ def test_wrong_shapes_fail_on_their_shape(letter_env, family):
 
 
 def test_slower_noisy_and_offset_letters_succeed():
-    env = gym.make("clfd/HelloWorld-l-v2")
+    env = gym.make("clfd/HelloWorld-l-v3")
     for family in ("slower", "noise", "start-offset"):
-        (rec,) = replay("clfd/HelloWorld-l-v2", [5], family, env=env)
+        (rec,) = replay("clfd/HelloWorld-l-v3", [5], family, env=env)
         assert rec.success, (family, rec.info)
     env.close()
 
 
 def test_lasa_demo_succeeds_and_its_mirror_fails():
-    env = gym.make("clfd/LASA-Sine-v2")
-    (ok,) = replay("clfd/LASA-Sine-v2", [0], "demo", env=env)
+    env = gym.make("clfd/LASA-Sine-v3")
+    (ok,) = replay("clfd/LASA-Sine-v3", [0], "demo", env=env)
     assert ok.success, ok.info
-    (bad,) = replay("clfd/LASA-Sine-v2", [0], "mirror", env=env)
+    (bad,) = replay("clfd/LASA-Sine-v3", [0], "mirror", env=env)
     assert not bad.success and "hausdorff" in bad.info["failed"], bad.info
     env.close()
 
 
 def test_text_env_lifts_the_pen_between_letters():
-    env = gym.make("clfd/HelloWorld-v2", text="he")
+    env = gym.make("clfd/HelloWorld-v3", text="he")
     base = env.unwrapped
     result = rollout(env, base.demo_trajectory(1), demo=1)
     info = result.info
     assert result.success and info["strokes"] == 2, info
+    names = [c["name"] for c in info["checks"]]
+    assert names[:3] == ["strokes", "ink_fraction", "stray_ink"]
+    assert names[3:] == [f"letter {k} ({c}): {n}" for k, c in enumerate("he")
+                         for n in ("dtw", "hausdorff", "coverage", "goal", "dwell")]
+    assert all(c["passed"] for c in info["checks"])
+    (goal_e,) = [c for c in info["checks"] if c["name"] == "letter 1 (e): goal"]
+    # letter units (m before the text's 0.3 scale) -> m on the board
+    assert goal_e["value"] == pytest.approx(0.3 * info["letter_goal_distance"][1])
+    assert goal_e["bound"] == pytest.approx(0.3 * base.tolerances["e"].goal_tolerance)
     assert max(info["letter_dtw"]) < 1.0
     # No connecting ink: the ink drawn while the pen is commanded up is at most a dot where
     # it leaves / meets the board, and the two ink strokes are the two letters.
@@ -84,22 +111,24 @@ def test_text_env_lifts_the_pen_between_letters():
     assert len(strokes) == 2
     a, b = strokes[0][1], strokes[1][0]  # the gap between the letters
     assert not down[a:b].any() and np.linalg.norm(xy[b] - xy[a - 1]) > 0.02
-    (rev,) = replay("clfd/HelloWorld-v2", [1], "reverse", env=env)
+    (rev,) = replay("clfd/HelloWorld-v3", [1], "reverse", env=env)
     assert not rev.success
     env.close()
 
 
 def test_replay_cli_json(capsys, tmp_path):
     out = tmp_path / "t.json"
-    args = argparse.Namespace(env=["clfd/HelloWorld-l-v2"], demos="1", perturb="stop-early",
+    args = argparse.Namespace(env=["clfd/HelloWorld-l-v3"], demos="1", perturb="stop-early",
                               settle=0.5, json=str(out), verbose=False)
     assert replay_cli._run(args) == 0
     doc = json.loads(out.read_text())
     (row,) = doc["results"]
     assert row["demo"] == 1 and row["family"] == "stop-early" and row["success"] is False
-    assert "goal" in row["info"]["failed"]
+    assert "goal" in row["info"]["failed"]  # 'l' cut at half: only the end check sees it
+    (goal,) = [c for c in row["info"]["checks"] if c["name"] == "goal"]
+    assert goal["value"] > 2 * goal["bound"]  # 4.9 cm against 1.76 cm
 
 
 def test_replay_rejects_bad_demo_index():
     with pytest.raises(ValueError, match="has demos 0..7"):
-        replay("clfd/HelloWorld-h-v2", [8])
+        replay("clfd/HelloWorld-h-v3", [8])

@@ -6,6 +6,7 @@
     clfd-bench paper run --executor ray --address auto --workers 32 --out results
     clfd-bench paper tables --datasets helloworld --out results
     clfd-bench paper sizes --profile fast                   # FS of the profile's model sizes
+    clfd-bench paper profiles fast=results/helloworld full=results/full/helloworld
 
 The grid: LASA and HelloWorld with SG FT REP SI MAS HN CHN and NODE^T / NODE^I, RoboTasks
 with SG FT REP HN CHN and NODE^T, seeds 0-4, task orders 0-2, profile ``paper``; every
@@ -179,6 +180,34 @@ def _sizes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _profiles(args: argparse.Namespace) -> int:
+    from clfd_bench.harness.validate import InputError
+    from clfd_bench.studies.profile_compare import compare_profiles, markdown, write_comparison
+
+    folders: dict[str, str] = {}
+    for item in args.leaderboards:
+        label, sep, folder = item.partition("=")
+        if not sep or not label or not folder:
+            print(f"clfd-bench paper profiles: error: {item!r} is not LABEL=FOLDER (e.g. "
+                  "fast=results/helloworld)", file=sys.stderr)
+            return 2
+        if label in folders:
+            print(f"clfd-bench paper profiles: error: label {label!r} given twice",
+                  file=sys.stderr)
+            return 2
+        folders[label] = folder
+    try:
+        cmp = compare_profiles(folders)
+    except InputError as exc:
+        print(f"clfd-bench paper profiles: error: {exc}", file=sys.stderr)
+        return 2
+    print(markdown(cmp))
+    if args.out:
+        for path in write_comparison(cmp, args.out):
+            print(f"wrote {path}")
+    return 0
+
+
 def _safe(func):
     def wrapped(args: argparse.Namespace) -> int:
         from clfd_bench.harness.config import ConfigError
@@ -238,6 +267,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sz.add_argument("--tolerance", type=float, default=0.05,
                     help="mark rows whose FS differs from the paper's by more (default 0.05)")
     sz.set_defaults(func=_safe(_sizes))
+    pr = sub.add_parser("profiles", help="one dataset's leaderboards at several profiles, "
+                        "side by side (is fast faithful in execution?)")
+    pr.add_argument("leaderboards", nargs="+", metavar="LABEL=FOLDER",
+                    help="leaderboard output folders with a label each, the reference last, "
+                         "e.g. fast=results/helloworld full=results/full/helloworld")
+    pr.add_argument("--out", default=None,
+                    help="also write profile_comparison.md/.json into this folder")
+    pr.set_defaults(func=_safe(_profiles))
     tb = sub.add_parser("tables", help="the paper's tables from the finished runs, vs the paper")
     _add_grid_flags(tb)
     tb.add_argument("--out", required=True, help="results directory holding OUT/runs")

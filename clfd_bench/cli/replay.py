@@ -4,8 +4,8 @@ table. Exits 1 when a cell disagrees with its family's expectation.
 
 Examples::
 
-    clfd-bench replay --env clfd/HelloWorld-h-v2
-    clfd-bench replay --env clfd/LASA-Angle-v2 --demos 0,1 --perturb reverse,mirror
+    clfd-bench replay --env clfd/HelloWorld-h-v3
+    clfd-bench replay --env clfd/LASA-Angle-v3 --demos 0,1 --perturb reverse,mirror
     clfd-bench replay --env robotasks --perturb all --json table.json   # env x family table
     clfd-bench replay --env all                          # every registered env
 """
@@ -122,7 +122,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "replay", help="replay dataset demos through simulated envs and print per-demo success",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", action="append", required=True, metavar="ID",
-                   help="env id (e.g. clfd/HelloWorld-h-v2), or 'all', 'writing', 'robotasks'; "
+                   help="env id (e.g. clfd/HelloWorld-h-v3), or 'all', 'writing', 'robotasks'; "
                         "repeatable")
     p.add_argument("--demos", default="all", help="'all' (default) or comma-separated indices")
     p.add_argument("--perturb", default="demo", metavar="FAMILIES",

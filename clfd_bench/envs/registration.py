@@ -1,6 +1,7 @@
 """Gymnasium registration of every clfd-bench environment (namespace `clfd`).
 
-Ids (each env has its own version, `env_version(name)`; all are `-v2` today):
+Ids (each env has its own version, `env_version(name)`; the RoboTasks scenes are `-v2`, the
+writing envs `-v3` today):
 
 | id | task | entry point |
 |---|---|---|
@@ -13,11 +14,11 @@ Ids (each env has its own version, `env_version(name)`; all are `-v2` today):
 | `clfd/ObstacleRotate-v2` | RoboTasks9 `obstaclerotate` | same |
 | `clfd/MatFolding-v2` | RoboTasks9 `matfolding` | same |
 | `clfd/Scoop-v2` | RoboTasks9 `scoop` | same |
-| `clfd/HelloWorld-<letter>-v2` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
-| `clfd/HelloWorld-v2` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
-| `clfd/LASA-<Shape>-v2` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
+| `clfd/HelloWorld-<letter>-v3` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
+| `clfd/HelloWorld-v3` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
+| `clfd/LASA-<Shape>-v3` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
 
-LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v2`, `clfd/LASA-heee-v2`): every
+LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v3`, `clfd/LASA-heee-v3`): every
 one of the paper's 26 names uses only letters, digits and `_`, which Gymnasium ids allow.
 `lasa_env_name` refuses names with other characters rather than guess a mapping.
 
@@ -58,7 +59,7 @@ WRITING_MODULE = "clfd_bench.envs.writing"
 #: Version of each family of envs; a behaviour change bumps the version of what it changes
 #: (and adds a line to the env class's Version History). Gymnasium then refuses the old id
 #: with a message naming the new one.
-FAMILY_VERSIONS: dict[str, int] = {"robotasks": 2, "letters": 2, "text": 2, "lasa": 2}
+FAMILY_VERSIONS: dict[str, int] = {"robotasks": 2, "letters": 3, "text": 3, "lasa": 3}
 #: Versions of single envs that moved on without their family, e.g. {"Pouring": 2}.
 ENV_VERSIONS: dict[str, int] = {}
 _VALID_NAME = re.compile(r"^[A-Za-z0-9_]+$")

@@ -232,6 +232,172 @@ DESIGN: dict[str, dict[str, Any]] = {
 }
 
 
+#: Where the observer arguments' measurements come from.
+_REPLAYED = "in every must-succeed replay of `clfd-bench replay --perturb all` (2026-12-05)"
+
+
+def _place_radius_argument(prop: str, spread: str, drift: str, size: str) -> str:
+    return (f"observer: let go where the demos let go. When the gripper opens, the {prop} must "
+            "be within this horizontal distance (m) of where demo j lets it go ([scene] "
+            "place_centre[j]). Design: the 1.5 cm position margin + 5 mm for the prop's swing "
+            f"as the fingers open. Why an observer signs it: {spread}; {_REPLAYED} the prop is "
+            f"let go at most 0.85 cm from demo j's point, the 5 cm drift {drift}; {size}")
+
+
+def _knock_argument(what: str, replayed: str, hit: str, size: str) -> str:
+    return (f"observer: the {what} is not knocked. It may move at most this far (m) from where "
+            f"it was put, at any step. Design. Why an observer signs it: {replayed}; "
+            f"executions that run into it {hit}; {size}")
+
+
+#: The observer's argument for every design constant of a success criterion (issue 38): why an
+#: observer would sign the verdicts at that bound, with what the demos and the perturbation
+#: families measure on either side of it (docs/execution.md, "Where every bound comes from").
+#: Written next to the value in tasks/<task>.toml.
+OBSERVER: dict[str, dict[str, dict[str, str]]] = {
+    "openbox": {"success": {
+        "stay_open_tolerance_deg": (
+            "observer: the lid stays open. After the gripper lets go the lid may settle this "
+            "far (deg) below min_open_angle_deg. Design. Why an observer signs it: the friction "
+            f"hinges hold the lid where it is left ({_REPLAYED} it settles at most 0.6 deg); "
+            "3 deg is 1.2-1.4 cm of the edge's travel at the demos' 0.23-0.26 m grasp radii, "
+            "less than the 1.5 cm of arc min_open_angle_deg already concedes, so a lid within "
+            "it is as open as demo j leaves it; the must-fail executions that let the lid go "
+            "end 4.8 deg (stop-early) to 101 deg short of min_open_angle_deg"),
+    }},
+    "bottle2shelf": {"success": {
+        "place_radius": _place_radius_argument(
+            "bottle's centre", "the demos let the bottle go within 0.9 cm of each other",
+            "2.1-5 cm", "2 cm is 0.7 of the bottle's 2.8 cm radius: seen from above, a bottle "
+            "let go at the bound still overlaps demo j's"),
+        "max_tilt_deg": (
+            "observer: lying on the shelf. The bottle's axis at most this far (deg) from "
+            "horizontal at the end. Design. Why an observer signs it: on the flat board the "
+            f"axis is horizontal (0.04 deg {_REPLAYED}); it rests tilted only on something "
+            "else, and 20 deg lifts one end of the 14.5 cm bottle 5 cm off the board: propped, "
+            "not lying; a standing bottle is at 90 deg"),
+        "min_height": (
+            "observer: resting on the board. The bottle's centre must be at least this high "
+            "(m) above the shelf's top at the end: below it, it has sunk into the board (a "
+            "physics failure)"),
+        "max_height": (
+            "the bottle's centre at most this high (m) above the shelf's top at the end. "
+            f"Design. Why an observer signs it: lying on the board its centre is its radius, "
+            f"2.8 cm, above it ({_REPLAYED}); 4.5 cm is 1.7 cm more, resting on something "
+            "else, and below the 7 cm of a standing bottle"),
+    }},
+    "platestandingtolying": {"success": {
+        "place_radius": _place_radius_argument(
+            "plate's centre", "the nearest other demo lets the plate go at most 1.75 cm from "
+            "where demo j does (but the demos span 5.7 cm: a plate laid flat 2-5.7 cm from "
+            "demo j's point, where another demo lays it, fails; stricter than the demos' own "
+            "spread)", "2.4-5 cm", "2 cm is 0.3 of the plate's 7 cm radius"),
+        "max_tilt_deg": (
+            "observer: lying on the platform. The plate's face at most this far (deg) from "
+            "horizontal at the end. Design. Why an observer signs it: lying on the flat "
+            f"platform it is level (0.01 deg {_REPLAYED}); 25 deg lifts the far rim of the "
+            "14 cm plate 5.9 cm: propped (on the rack, a finger), not lying; standing is 90 deg"),
+        "min_height": (
+            "observer: resting on the platform. The plate's centre must be at least this high "
+            "(m) above the platform's top at the end: below it, it has sunk into the board"),
+        "max_height": (
+            "the plate's centre at most this high (m) above the platform's top at the end. "
+            "Design. Why an observer signs it: lying on the board its centre is half its 1 cm "
+            f"thickness above it (0.49 cm {_REPLAYED}); 3 cm is 2.5 cm more, resting on "
+            "something else, and below the 7 cm of a plate standing on its rim"),
+        "max_rack_shift": _knock_argument(
+            "dish rack", f"{_REPLAYED} the rack moves at most 0.2 mm (settling)",
+            "(shortcut, rush-wait) move it 7-24 cm", "1 cm is 7 % of the 13 x 14.5 cm rack. "
+            "Where an observer would not sign it: learned executions (the RoboTasks fast grid) "
+            "bump the rack 1.2-2.8 cm while laying the plate flat on the platform, and the "
+            "closing frame shows the rack in place (only the video shows the bump)"),
+        "max_rack_tilt_deg": (
+            "observer: the rack is not tipped. It may tilt at most this far (deg) at any step. "
+            f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
+            "lifts one side of its 13 cm base 2.3 cm off the table; executions that run into "
+            "it tilt it 10-90 deg"),
+    }},
+    "wineglass": {"success": {
+        "place_radius": _place_radius_argument(
+            "glass's foot", "the demos let the glass go within 1.8 cm of each other (the "
+            "nearest other demo at most 0.7 cm away)", "0.9-5 cm (the near ones fail anyway: "
+            "the glass pressed into the shelf slips out)", "2 cm is 0.6 of the foot's 3.5 cm "
+            "radius"),
+        "max_tilt_deg": (
+            "observer: standing upright. The glass's axis at most this far (deg) from "
+            "vertical at the end. Design. Why an observer signs it: standing on its foot on "
+            f"the flat shelf it is upright (0.02 deg {_REPLAYED}); it leans only against "
+            "something, and 10 deg moves the rim of the 20 cm glass 3.5 cm sideways; "
+            "must-fail executions that let it go leave it 16-146 deg from upright"),
+        "min_height": (
+            "observer: standing on the shelf. The foot's bottom at least this far (m) above "
+            "the shelf's top at the end (negative: the contact's give; deeper, it has sunk "
+            "into the board)"),
+        "max_height": (
+            "the foot's bottom at most this high (m) above the shelf's top at the end. Design. "
+            f"Why an observer signs it: standing on the board it touches it (-0.07 mm "
+            f"{_REPLAYED}); 1 cm up, the foot rests on something else"),
+        "max_tray_shift": _knock_argument(
+            "drying tray", f"{_REPLAYED} the tray moves at most 0.1 mm (settling)",
+            "(shortcut, rush-wait) move it 6.8-11 cm", "1 cm is 4 % of the 25 x 13 cm tray; "
+            "the nearest must-fail rollout moved it 1.03 cm (mirror, which also hits the tray's "
+            "wall)"),
+        "max_tray_tilt_deg": (
+            "observer: the tray is not tipped. It may tilt at most this far (deg) at any step. "
+            f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
+            "lifts one side of its 13 cm base 2.3 cm off the stand"),
+    }},
+    "pan2stove": {"success": {
+        "place_radius": _place_radius_argument(
+            "pan's bottom centre", "the demos let the pan go within 2.5 cm of each other (the "
+            "nearest other demo at most 1.4 cm away)", "1.7-78 cm", "2 cm is 0.25 of the "
+            "bottom's 8 cm radius"),
+        "max_tilt_deg": (
+            "observer: lying flat, bottom down. The pan's bottom at most this far (deg) from "
+            "facing down at the end. Design. Why an observer signs it: flat on the stove it is "
+            f"level (0.02 deg {_REPLAYED}); 15 deg lifts the far side of the 16 cm bottom "
+            "4.1 cm: resting on its rim or handle, not flat; must-fail executions that let it "
+            "go leave it 19-90 deg"),
+        "min_height": (
+            "observer: on the stove. The bottom's outer centre at least this far (m) above the "
+            "stove's top at the end (negative: the contact's give; deeper, it has sunk in)"),
+        "max_height": (
+            "the bottom's outer centre at most this high (m) above the stove's top at the end. "
+            f"Design. Why an observer signs it: flat on the stove it touches it (-0.07 mm "
+            f"{_REPLAYED}); 1 cm up, the pan rests on something else"),
+        "max_rack_shift": _knock_argument(
+            "pan rack", "the demos drag the pan 9-26 cm along the rack's floor and move the "
+            "rack at most 0.7 mm; 1 cm noise and start offsets rub the pan along a wall and "
+            "nudge it up to 8.4 mm (0.1 deg): the one knock bound a good execution comes "
+            "within 2 mm of", "(shortcut, rush-wait) move it 2.8-35 cm",
+            "1 cm is 3 % of the 26 x 39 cm rack: an observer sees a nudge rather than a "
+            "knock there, so a failure at 1-2 cm is the bound's, not the execution's (a 2 cm "
+            "bound would change no perturbation family's verdict)"),
+        "max_rack_tilt_deg": (
+            "observer: the rack is not tipped. It may tilt at most this far (deg) at any step. "
+            f"Design. Why an observer signs it: it stays level (0.1 deg at most {_REPLAYED}); "
+            "10 deg lifts one side of its 26 cm base 4.5 cm off the table; executions that run "
+            "into it tilt it up to 32 deg"),
+    }},
+    "obstaclerotate": {"success": {
+        "place_radius": _place_radius_argument(
+            "box's centre", "the demos let the box go within 1.2 cm of each other",
+            "3-25 cm", "2 cm is 0.67 of the box's 3 cm half-width"),
+        "max_tilt_deg": (
+            "observer: lying on the shelf. The box's top face at most this far (deg) from "
+            "level at the end. Design. Why an observer signs it: on the flat shelf it is level "
+            f"(0.0 deg {_REPLAYED}); 15 deg lifts one end of the 20 cm box 5.2 cm: propped, "
+            "not lying"),
+        "min_height": (
+            "observer: on the shelf. The box's lowest point at least this far (m) above the "
+            "shelf's top at the end (negative: the contact's give; deeper, it has sunk in)"),
+        "max_height": (
+            "the box's lowest point at most this high (m) above the shelf's top at the end. "
+            f"Design. Why an observer signs it: lying on the board it touches it (-0.07 mm "
+            f"{_REPLAYED}); 1 cm up, the box rests on something else"),
+    }},
+}
+
 def _task_model(task: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
     model = mujoco.MjModel.from_xml_path(str(resource_path("tasks", f"{task}.xml")))
     return model, mujoco.MjData(model)
@@ -378,10 +544,7 @@ def _derive_openbox(task, design, starts) -> dict[str, Any]:
                 "it. Procedure: demo j's final grasp angle ([derived] grasp_angle_end_deg) less "
                 "the angle 1.5 cm of arc make at its grasp radius ([derived] grasp_radii), at "
                 "least 1 deg more than any demo has reached at half time "
-                "(grasp_angle_half_deg, max)"),
-                "stay_open_tolerance_deg": (
-                "design: the lid may settle this much below min_open_angle_deg after the "
-                "gripper lets go (the friction hinges hold it)")},
+                "(grasp_angle_half_deg, max)")},
         },
     }
 
@@ -405,10 +568,6 @@ def _place_bounds(lows: np.ndarray, coms: np.ndarray, top: float) -> dict[str, A
                 "the prop's lowest point may be at most this high above the support's top when "
                 "the gripper opens. Procedure: the held prop at each demo's last pose "
                 "([derived] release_height_demos), max + 1.5 cm"),
-            "place_radius": (
-                "the prop's centre must be within this horizontal distance of where demo j "
-                "lets it go ([scene] place_centre[j]) when the gripper opens: 1.5 cm of "
-                "position margin + 5 mm for the prop's swing as the fingers open"),
         },
     }
 
@@ -525,12 +684,7 @@ def _derive_plate(task, design, starts) -> dict[str, Any]:
                             "needed until every demo's plate stays 1.5 cm clear of the "
                             "platform on its way ([derived] platform_path_clearance)",
             "place_centre": _PLACE_CENTRE_COMMENT},
-            "success": {
-            **place["comments"],
-            "max_rack_shift": "design: a rack moved more than this (m) at any step has been "
-                              "knocked",
-            "max_rack_tilt_deg": "design: a rack tilted more than this at any step has been "
-                                 "knocked"}},
+            "success": place["comments"]},
     }
 
 
@@ -800,12 +954,7 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
                          "clear of the shelf on its way ([derived] shelf_path_clearance)",
             "place_centre": "per demo j: where the glass's foot centre (x, y) is when demo j "
                             "lets it go (the held glass at demo j's last pose)"},
-            "success": {
-            **place["comments"],
-            "max_tray_shift": "design: a tray moved more than this (m) at any step has been "
-                              "knocked",
-            "max_tray_tilt_deg": "design: a tray tilted more than this at any step has been "
-                                 "knocked"}},
+            "success": place["comments"]},
     }
 
 
@@ -850,12 +999,7 @@ def _derive_pan(task, design, starts) -> dict[str, Any]:
                          "stove_path_clearance)",
             "place_centre": "per demo j: where the pan's bottom centre (x, y) is when demo j "
                             "lets it go (the held pan at demo j's last pose)"},
-            "success": {
-            **place["comments"],
-            "max_rack_shift": "design: a rack moved more than this (m) at any step has been "
-                              "knocked",
-            "max_rack_tilt_deg": "design: a rack tilted more than this at any step has been "
-                                 "knocked"}},
+            "success": place["comments"]},
     }
 
 
@@ -1426,6 +1570,8 @@ def derive_spec(task_name: str, with_starts: bool = True,
         for table, entries in _COMMON_COMMENTS.items():
             comments.setdefault(table, {}).update(entries)
         for table, entries in derived.get("comments", {}).items():
+            comments.setdefault(table, {}).update(entries)
+        for table, entries in OBSERVER.get(task_name, {}).items():
             comments.setdefault(table, {}).update(entries)
         comments.setdefault("derived", {}).update({
             "demo_replay_success": "each demo replayed in this scene (+ 1 s settling, no "

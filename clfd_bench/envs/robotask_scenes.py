@@ -61,7 +61,11 @@ the robot stands on it, on a mount when the table is lower than the robot's base
 is a collision plane (the Menagerie floor, moved and hidden in geom group 3) drawn as a wooden
 top on four legs above the room's floor.
 
-`success` only reads the records `track` keeps, so it is cheap at every step.
+`success` only reads the records `track` keeps, so it is cheap at every step. The openbox,
+bottle2shelf, platestandingtolying, pouring, wineglass, pan2stove and obstaclerotate scenes
+return the criteria above as `info["checks"]`: one `clfd_bench.envs.checks.Check` (as JSON) per
+criterion, with its measured value and bound in m, deg or counts; their success is exactly all
+of them passing (`docs/execution.md`, "Where every bound comes from").
 `clfd_bench.execution.rollout.rollout` decides after the trajectory and the settling time.
 """
 
@@ -74,6 +78,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from clfd_bench.envs.checks import Check, checks_json
 from clfd_bench.sim.grasp import Grasp, GraspSpec, grip_capacity
 from clfd_bench.sim.robot import GRASP_SITE
 from clfd_bench.sim.scene_fit import lowest_point
@@ -410,13 +415,19 @@ class OpenBoxScene(Scene):
         c = self.success_cfg
         angle = self.lid_angle(data)
         need = self.record["need"]
-        opened = self.record["max_held_angle"] >= need
-        stays = angle >= need - float(c["stay_open_tolerance_deg"])
-        let_go = grasp.release_reason == "opened"
-        ok = bool(opened and stays and let_go)
-        return ok, {"lid_angle_deg": angle, "lid_max_held_angle_deg":
-                    float(self.record["max_held_angle"]), "lid_open_needed_deg": need,
-                    "lid_opened_by_grasp": bool(opened)}
+        held_max = float(self.record["max_held_angle"])
+        checks = [
+            Check("lid_opened", held_max, need, ">=", "deg",
+                  "largest lid angle while the grasp held it, vs demo j's end less 1.5 cm of arc"),
+            Check.flag("let_go", grasp.release_reason == "opened",
+                       "the gripper opened (the lid's edge did not slip out)"),
+            Check("lid_stays_open", angle, need - float(c["stay_open_tolerance_deg"]), ">=",
+                  "deg", "lid angle at the end"),
+        ]
+        ok = all(ch.passed for ch in checks)
+        return ok, {"lid_angle_deg": angle, "lid_max_held_angle_deg": held_max,
+                    "lid_open_needed_deg": need, "lid_opened_by_grasp": bool(held_max >= need),
+                    "checks": checks_json(checks)}
 
 
 class KnockWatch:
@@ -442,6 +453,16 @@ class KnockWatch:
         tilt = math.degrees(math.acos(min(1.0, cos_tilt)))
         if tilt > rec[key_tilt]:
             rec[key_tilt] = tilt
+
+
+def knock_checks(name: str, rec: dict[str, Any], cfg: dict[str, Any]) -> list[Check]:
+    """`<name>_shift` (m) and `<name>_tilt` (deg) checks of a `KnockWatch` record against the
+    spec's `max_<name>_shift`, `max_<name>_tilt_deg`."""
+    shift, tilt = f"max_{name}_shift", f"max_{name}_tilt_deg"
+    return [Check(f"{name}_shift", float(rec[shift]), float(cfg[shift]), "<=", "m",
+                  f"the {name}'s largest shift at any step"),
+            Check(f"{name}_tilt", float(rec[tilt]), float(cfg[tilt]), "<=", "deg",
+                  f"the {name}'s largest tilt at any step")]
 
 
 class _PlaceScene(Scene):
@@ -486,15 +507,38 @@ class _PlaceScene(Scene):
         self.record["release_offset"] = float(np.linalg.norm(self.prop_centre(data)[:2]
                                                              - centre))
 
-    def _placed(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
+    def _placed(self, data: mujoco.MjData, grasp: Grasp) -> tuple[list[Check], dict[str, Any]]:
+        """The release's checks (let go by opening the gripper, not held now; low; near demo
+        j's release point) and their info entries."""
         c = self.success_cfg
         h, off = self.record["release_height"], self.record["release_offset"]
-        let_go = grasp.release_reason == "opened"
-        low = h is not None and h <= float(c["max_release_height"])
-        near = off is not None and off <= float(c["place_radius"])
-        return bool(let_go and low and near), {
-            "release_height": None if h is None else float(h),
-            "release_offset": None if off is None else float(off)}
+        h = None if h is None else float(h)
+        off = None if off is None else float(off)
+        checks = [
+            Check.flag("let_go", grasp.release_reason == "opened" and not grasp.held(data),
+                       "the gripper opened (the prop did not slip out) and holds nothing")]
+        for name, value, key, note in (
+                ("release_height", h, "max_release_height",
+                 "the prop's lowest point above the support's top when the gripper opens"),
+                ("release_offset", off, "place_radius",
+                 "horizontal distance from where demo j lets the prop go")):
+            if key in c:
+                checks.append(Check(name, value, float(c[key]), "<=", "m", note))
+            else:  # a provisional spec while deriving (the prop is never let go there)
+                checks.append(Check.flag(name, False, f"the spec has no [success] {key}"))
+        return checks, {"release_height": h, "release_offset": off}
+
+    def _rest_checks(self, on_top: bool, tilt: float, tilt_note: str, height: float,
+                     height_note: str) -> list[Check]:
+        """The end state's checks: on the support, tilt (deg) within `max_tilt_deg`, height
+        (m) above the support's top within [`min_height`, `max_height`]."""
+        c = self.success_cfg
+        return [
+            Check.flag(f"on_{self.support}", on_top, f"over the {self.support}'s top"),
+            Check("tilt", tilt, float(c["max_tilt_deg"]), "<=", "deg", tilt_note),
+            Check("rest_height_min", height, float(c["min_height"]), ">=", "m", height_note),
+            Check("rest_height_max", height, float(c["max_height"]), "<=", "m", height_note),
+        ]
 
     def _on_support(self, data: mujoco.MjData, point: np.ndarray) -> tuple[bool, float]:
         rot = data.xmat[self.support_id].reshape(3, 3)
@@ -512,16 +556,15 @@ class BottleScene(_PlaceScene):
     support_geoms = ("shelf_board", "shelf_support")
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
-        c = self.success_cfg
-        placed, info = self._placed(data, grasp)
+        checks, info = self._placed(data, grasp)
         on_top, height = self._on_support(data, data.xipos[self.prop_id])
         axis = data.xmat[self.prop_id].reshape(3, 3)[:, 2]
         tilt = 90.0 - _tilt_from_vertical(axis)  # from horizontal
-        lying = tilt <= float(c["max_tilt_deg"])
-        resting = float(c["min_height"]) <= height <= float(c["max_height"])
-        ok = bool(placed and on_top and lying and resting and not grasp.held(data))
-        info.update({"bottle_tilt_deg": tilt, "bottle_height": height, "on_shelf": on_top})
-        return ok, info
+        checks += self._rest_checks(on_top, tilt, "the bottle's axis from horizontal", height,
+                                    "the bottle's centre above the shelf's top")
+        info.update({"bottle_tilt_deg": tilt, "bottle_height": height, "on_shelf": on_top,
+                     "checks": checks_json(checks)})
+        return all(ch.passed for ch in checks), info
 
 
 class PlateScene(_PlaceScene):
@@ -583,21 +626,21 @@ class PlateScene(_PlaceScene):
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
-        placed, info = self._placed(data, grasp)
+        rec = self.record
+        knock = knock_checks("rack", rec, c)
+        checks, info = self._placed(data, grasp)
         on_top, height = self._on_support(data, data.geom_xpos[self.disc])
         normal = data.xmat[grasp.body_id].reshape(3, 3)[:, 1]
         tilt = _tilt_from_vertical(normal)
-        lying = tilt <= float(c["max_tilt_deg"])
-        resting = float(c["min_height"]) <= height <= float(c["max_height"])
-        rec = self.record
-        rack_ok = bool(rec["max_rack_shift"] <= float(c["max_rack_shift"])
-                       and rec["max_rack_tilt_deg"] <= float(c["max_rack_tilt_deg"]))
-        ok = bool(placed and on_top and lying and resting and rack_ok and not grasp.held(data))
+        checks = knock + checks + self._rest_checks(
+            on_top, tilt, "the plate's face from horizontal", height,
+            "the plate's centre above the platform's top")
         info.update({"plate_tilt_deg": tilt, "plate_height": height, "on_platform": on_top,
                      "max_rack_shift": float(rec["max_rack_shift"]),
                      "max_rack_tilt_deg": float(rec["max_rack_tilt_deg"]),
-                     "rack_in_place": rack_ok})
-        return ok, info
+                     "rack_in_place": all(ch.passed for ch in knock),
+                     "checks": checks_json(checks)})
+        return all(ch.passed for ch in checks), info
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()
@@ -666,22 +709,23 @@ class _TrayPlaceScene(_PlaceScene):
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
         self.tray_watch.track(data, self.record, self.tray)
 
-    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
-        """Whether the prop now lies / stands on the support as the task wants, and why."""
+    def placed_ok(self, data: mujoco.MjData) -> tuple[list[Check], dict[str, Any]]:
+        """The checks that the prop now lies / stands on the support as the task wants
+        (`_rest_checks`), and their info entries."""
         raise NotImplementedError
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
-        c = self.success_cfg
+        rec = self.record
+        knock = knock_checks(self.tray, rec, self.success_cfg)
         placed, info = self._placed(data, grasp)
         resting, more = self.placed_ok(data)
+        checks = knock + placed + resting
         shift, tilt = f"max_{self.tray}_shift", f"max_{self.tray}_tilt_deg"
-        rec = self.record
-        tray_ok = bool(rec[shift] <= float(c[shift]) and rec[tilt] <= float(c[tilt]))
-        ok = bool(placed and resting and tray_ok and not grasp.held(data))
         info.update(more)
         info.update({shift: float(rec[shift]), tilt: float(rec[tilt]),
-                     f"{self.tray}_in_place": tray_ok})
-        return ok, info
+                     f"{self.tray}_in_place": all(ch.passed for ch in knock),
+                     "checks": checks_json(checks)})
+        return all(ch.passed for ch in checks), info
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()
@@ -717,15 +761,13 @@ class GlassScene(_TrayPlaceScene):
         axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
         return data.geom_xpos[self.foot] - self._foot_half * axis
 
-    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
-        c = self.success_cfg
+    def placed_ok(self, data: mujoco.MjData) -> tuple[list[Check], dict[str, Any]]:
         on_top, height = self._on_support(data, self.foot_bottom(data))
         axis = data.xmat[self.prop_id].reshape(3, 3)[:, 0]
         tilt = float(np.degrees(np.arccos(np.clip(axis[2], -1.0, 1.0))))  # 180: upside down
-        upright = tilt <= float(c["max_tilt_deg"])
-        standing = float(c["min_height"]) <= height <= float(c["max_height"])
-        return bool(on_top and upright and standing), {
-            "glass_tilt_deg": tilt, "glass_foot_height": height, "on_shelf": on_top}
+        checks = self._rest_checks(on_top, tilt, "the glass's axis from upright (180: upside "
+                                   "down)", height, "the foot's bottom above the shelf's top")
+        return checks, {"glass_tilt_deg": tilt, "glass_foot_height": height, "on_shelf": on_top}
 
 
 class PanScene(_TrayPlaceScene):
@@ -748,16 +790,15 @@ class PanScene(_TrayPlaceScene):
         """[3] the centre of the pan's bottom."""
         return data.geom_xpos[self.bottom]
 
-    def placed_ok(self, data: mujoco.MjData) -> tuple[bool, dict[str, Any]]:
-        c = self.success_cfg
+    def placed_ok(self, data: mujoco.MjData) -> tuple[list[Check], dict[str, Any]]:
         z = data.xmat[self.prop_id].reshape(3, 3)[:, 2]  # from the rim to the bottom
         outer = data.geom_xpos[self.bottom] + self._bottom_half * z
         on_top, height = self._on_support(data, outer)
         tilt = float(np.degrees(np.arccos(np.clip(-z[2], -1.0, 1.0))))  # 180: upside down
-        flat = tilt <= float(c["max_tilt_deg"])
-        resting = float(c["min_height"]) <= height <= float(c["max_height"])
-        return bool(on_top and flat and resting), {
-            "pan_tilt_deg": tilt, "pan_bottom_height": height, "on_stove": on_top}
+        checks = self._rest_checks(on_top, tilt, "the pan's bottom from facing down (180: "
+                                   "upside down)", height,
+                                   "the bottom's outer centre above the stove's top")
+        return checks, {"pan_tilt_deg": tilt, "pan_bottom_height": height, "on_stove": on_top}
 
 
 class ObstacleScene(_PlaceScene):
@@ -824,24 +865,30 @@ class ObstacleScene(_PlaceScene):
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
-        placed, info = self._placed(data, grasp)
         on_top, _ = self._on_support(data, data.xipos[self.prop_id])
         height = lowest_point(self.model, data, self.prop) - float(self.scene["shelf_top"][2])
         z = data.xmat[self.prop_id].reshape(3, 3)[:, 2]
         tilt = _tilt_from_vertical(z)
-        lying = tilt <= float(c["max_tilt_deg"])
-        resting = float(c["min_height"]) <= height <= float(c["max_height"])
         touched = self.record["obstacle_touched_by"]
         back = self.record["release_turn_deg"]
-        turned = bool(self.record["max_turn_deg"] >= float(c["min_turn_deg"])
-                      and back is not None and abs(back) <= float(c["max_end_turn_deg"]))
-        ok = bool(placed and on_top and lying and resting and touched is None and turned
-                  and not grasp.held(data))
+        turn = float(self.record["max_turn_deg"])
+        checks = [
+            Check.flag("obstacle_untouched", touched is None,
+                       "nothing but the table touched the obstacle" if touched is None
+                       else f"touched by {touched}"),
+            Check("turn", turn, float(c["min_turn_deg"]), ">=", "deg",
+                  "the box's largest turn the demos' way while held beside the obstacle"),
+            Check("end_turn", None if back is None else abs(float(back)),
+                  float(c["max_end_turn_deg"]), "<=", "deg",
+                  "the box's heading from its start heading when let go"),
+        ]
+        placed, info = self._placed(data, grasp)
+        checks += placed + self._rest_checks(on_top, tilt, "the box's top face from level",
+                                             height, "the box's lowest point above the shelf")
         info.update({"object_tilt_deg": tilt, "object_height": height, "on_shelf": on_top,
-                     "obstacle_touched_by": touched,
-                     "object_max_turn_deg": float(self.record["max_turn_deg"]),
-                     "object_release_turn_deg": back})
-        return ok, info
+                     "obstacle_touched_by": touched, "object_max_turn_deg": turn,
+                     "object_release_turn_deg": back, "checks": checks_json(checks)})
+        return all(ch.passed for ch in checks), info
 
 
 class MatScene(Scene):
@@ -1165,16 +1212,30 @@ class PouringScene(Scene):
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         c = self.success_cfg
+        n = self.n_beans
         frac = self.bean_fraction(data)
         spilled = float(self.record["spilled"].mean())
-        held = grasp.release_reason != "slipped"
         offset = self.pour_offset() if "pour_centre" in self.scene else 0.0
-        where = offset is not None and offset <= float(c.get("pour_radius", np.inf))
         eps = 1e-9  # the spec's fractions are rounded to 10 digits
-        ok = (frac >= float(c["min_fraction"]) - eps
-              and spilled <= float(c["max_spilled_fraction"]) + eps and held and where)
-        return bool(ok), {"bean_fraction": frac, "spilled_fraction": spilled,
-                          "pour_offset": offset}
+        checks = [Check.flag("cup_held", grasp.release_reason != "slipped",
+                             "the cup never slipped out of the fingers")]
+        if "pour_centre" in self.scene and "pour_radius" in c:
+            checks.append(Check("pour_offset", offset, float(c["pour_radius"]), "<=", "m",
+                                "where the cup's mouth is, on average, as its beans leave it, "
+                                "from where demo j's is"))
+        elif "pour_centre" in self.scene:
+            checks.append(Check.flag("poured", offset is not None, "a bean left the cup"))
+        checks += [
+            Check("beans_in_container", round(frac * n),
+                  math.ceil(n * (float(c["min_fraction"]) - eps)), ">=", "",
+                  f"beans (of {n}) in the container at the end"),
+            Check("beans_spilled", round(spilled * n),
+                  math.floor(n * (float(c["max_spilled_fraction"]) + eps)), "<=", "",
+                  f"beans (of {n}) that ever landed outside the container"),
+        ]
+        return all(ch.passed for ch in checks), {
+            "bean_fraction": frac, "spilled_fraction": spilled, "pour_offset": offset,
+            "checks": checks_json(checks)}
 
 
 class ScoopScene(Scene):

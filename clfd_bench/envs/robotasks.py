@@ -114,7 +114,11 @@ class RoboTaskEnv(PandaEnv):
 
     def _is_success(self, final: bool) -> bool:
         if self.scene.needs_release and self.grasp.held(self.data):
-            return False  # nothing is placed while the gripper holds it (the info stays)
+            # nothing is placed while the gripper holds it; on the last step the scene still
+            # reports its checks (its `let_go` check fails), so a report can say what was measured
+            if final:
+                _, self._scene_info = self.scene.success(self.data, self.grasp)
+            return False
         ok, self._scene_info = self.scene.success(self.data, self.grasp)
         return ok
 
@@ -319,7 +323,10 @@ attached), `release_reason` ("opened" / "slipped" / None), `slip_cause`, `grip_l
 `object_max_turn_deg`, `object_release_turn_deg`; `release_fold_offset`, `release_offset`,
 `fold_end_y`, `turned_strips`, `mat_folded`, `mat_heading_deg`, `mat_heading_error_deg`,
 `max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`,
-`grip_point`, `bowl_centre`, `bowl_tilt_deg`, `bowl_out_of_bin`, `bin_touched_by`).
+`grip_point`, `bowl_centre`, `bowl_tilt_deg`, `bowl_out_of_bin`, `bin_touched_by`), and
+`checks`: one `clfd_bench.envs.checks.Check.to_json` dict per success criterion (its measured
+value, bound, unit and whether it passed; success is all of them passing; reported by
+BoxOpening, BottleShelving, PlateStacking, Pouring, WineGlass, PanToStove, ObstacleRotate).
 
 ## Version History
 

@@ -24,6 +24,7 @@ from gymnasium import spaces
 
 from clfd_bench.data.resample import min_jerk_profile
 from clfd_bench.envs.base import CONTROL_HZ, PandaEnv, load_task
+from clfd_bench.envs.checks import Check, checks_json, failed_checks
 from clfd_bench.resources import resource_path
 from clfd_bench.sim.limits import MotionLimits
 from clfd_bench.sim.render import CameraSpec, add_segments
@@ -62,7 +63,8 @@ DECIDE_BATCH = 8
 DECIDE_MARGIN = 1e-9
 #: Keys of `tasks/writing.toml` [tolerances] (the derivation procedure's constants).
 TOLERANCE_KEYS = ("hausdorff_factor", "hausdorff_floor", "coverage_fraction", "coverage_factor",
-                  "coverage_floor", "dwell_factor", "dwell_cap")
+                  "coverage_floor", "dwell_factor", "dwell_cap", "dwell_radius",
+                  "goal_size_fraction", "goal_floor")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +81,6 @@ class WritingSpec:
     lift_height: float
     min_ink_fraction: float
     dtw_threshold: str
-    goal_tolerance: float
     lasa_center: tuple[float, float]
     text_default: str
     text_scale: float
@@ -115,7 +116,7 @@ def load_writing_spec() -> WritingSpec:
             y_range=tuple(s["y_range"]), hand_quat=tuple(p["hand_quat"]),
             press_depth=float(p["press_depth"]), ink_height=float(p["ink_height"]),
             lift_height=float(p["lift_height"]), min_ink_fraction=float(ok["min_ink_fraction"]),
-            dtw_threshold=ok["dtw_threshold"], goal_tolerance=float(ok["goal_tolerance"]),
+            dtw_threshold=ok["dtw_threshold"],
             lasa_center=tuple(la["center"]), text_default=tx["default"],
             text_scale=float(tx["scale"]), text_reference=tuple(tx["reference"]),
             text_first_slot=tuple(tx["first_slot"]), text_advance=tuple(tx["advance"]),
@@ -146,14 +147,18 @@ class ShapeTolerances:
         hausdorff: largest two-sided deviation of the ink from the target (symmetric Hausdorff).
         coverage_radius: the ink must pass within this of the target ...
         min_coverage: ... along at least this fraction of the target's arc length.
-        max_dwell: largest fraction of the episode's steps the pen may spend within the goal
-            tolerance of its last position.
+        max_dwell: largest fraction of the episode's steps the pen may spend within
+            `dwell_radius` of its last position.
+        goal_tolerance: the last ink point must lie within this of the task's end point.
+        dwell_radius: radius of the dwell check (a pen within it of its last position rests).
     """
 
     hausdorff: float
     coverage_radius: float
     min_coverage: float
     max_dwell: float
+    goal_tolerance: float
+    dwell_radius: float
 
 
 @functools.lru_cache(maxsize=4)
@@ -186,52 +191,79 @@ def dwell_fraction(path: np.ndarray, radius: float) -> float:
     return float(np.mean(np.einsum("ij,ij->i", d, d) <= radius * radius))
 
 
+#: Names of the checks `judge_shape` makes, in order.
+SHAPE_CHECKS = ("dtw", "hausdorff", "coverage", "goal", "dwell")
+
+
 def judge_shape(ink: np.ndarray, pen_path: np.ndarray, target: np.ndarray, goal: np.ndarray,
-                tol: ShapeTolerances, dtw_threshold: float, goal_tolerance: float
+                tol: ShapeTolerances, dtw_threshold: float, metres_per_unit: float = 1.0
                 ) -> dict[str, Any]:
     """Decides whether `ink` draws `target`, all in one unit (the task's data units).
 
-    Checks, each named in `failed` when it fails:
+    The verdict is a list of `Check`s (`SHAPE_CHECKS`, in this order); the letter fails when
+    any of them fails:
 
     - `dtw`: summed DTW of ink vs target <= `dtw_threshold` (the paper's);
     - `hausdorff`: symmetric Hausdorff distance <= `tol.hausdorff` (the shape, both ways);
-    - `coverage`: the ink passes within `tol.coverage_radius` along >= `tol.min_coverage` of the
-      target's arc length;
-    - `goal`: the last ink point within `goal_tolerance` of `goal` (the letter was finished);
-    - `dwell`: the pen spent <= `tol.max_dwell` of the steps within `goal_tolerance` of its last
-      position (it wrote, rather than rushed to the end and waited).
+    - `coverage`: the ink passes within `tol.coverage_radius` along >= `tol.min_coverage` of
+      the target's arc length (value: that fraction, unitless);
+    - `goal`: the last ink point within `tol.goal_tolerance` of `goal` (the letter was
+      finished);
+    - `dwell`: the pen spent <= `tol.max_dwell` of the steps within `tol.dwell_radius` of its
+      last position (it wrote, rather than rushed to the end and waited; unitless).
+
+    With fewer than 2 ink points dtw, hausdorff, coverage and goal are not measured (value
+    None) and fail.
 
     Args:
         ink: [K, 2] pen tip points of the steps the pen was on the board.
         pen_path: [N, 2] pen tip points of every step of the episode (or the letter).
         target: [T, 2] the target demo.
         goal: [2] the task's end point.
-        tol: the task's tolerances.
+        tol: the task's tolerances (data units).
         dtw_threshold: the paper's DTW threshold in these units.
-        goal_tolerance: in these units.
+        metres_per_unit: metres on the board per data unit: the checks report lengths in
+            metres on the board (HelloWorld letters 1, LASA 0.003, a letter of the text 0.3);
+            the other returned values stay in data units.
 
     Returns:
-        {dtw, hausdorff, coverage, goal_distance, dwell (the measured values), failed: list of
-        the failed checks' names, is_success}.
+        {dtw, hausdorff, coverage, goal_distance, dwell (the measured values, data units; inf /
+        0 when not measured), checks: list of the `Check`s, failed: the failed checks' names,
+        is_success}.
     """
     from clfd_bench.metrics.trajectory import coverage, dtw, nearest_distances
 
     out: dict[str, Any] = {"dtw": math.inf, "hausdorff": math.inf, "coverage": 0.0,
                            "goal_distance": math.inf,
-                           "dwell": dwell_fraction(pen_path, goal_tolerance)}
-    if len(ink) >= 2:
+                           "dwell": dwell_fraction(pen_path, tol.dwell_radius)}
+    measured = len(ink) >= 2
+    if measured:
         d_ink, d_target = nearest_distances(ink, target)  # both ways: Hausdorff and coverage
         out.update(dtw=dtw(ink, target), hausdorff=float(max(d_ink.max(), d_target.max())),
                    coverage=coverage(target, ink, tol.coverage_radius, ref_distances=d_target),
                    goal_distance=float(np.linalg.norm(ink[-1] - goal)))
-    failed = [name for name, ok in (
-        ("dtw", out["dtw"] <= dtw_threshold),
-        ("hausdorff", out["hausdorff"] <= tol.hausdorff),
-        ("coverage", out["coverage"] >= tol.min_coverage),
-        ("goal", out["goal_distance"] <= goal_tolerance),
-        ("dwell", out["dwell"] <= tol.max_dwell)) if not ok]
-    out["failed"] = failed
-    out["is_success"] = not failed
+    k = float(metres_per_unit)
+
+    def length(name: str, key: str, bound: float, note: str) -> Check:
+        return Check(name, out[key] * k if measured else None, bound * k, "<=", "m", note)
+
+    checks = [
+        length("dtw", "dtw", dtw_threshold, "summed DTW of ink vs target (the paper's "
+               "threshold)"),
+        length("hausdorff", "hausdorff", tol.hausdorff, "largest two-sided deviation of the "
+               "ink from the target"),
+        Check("coverage", out["coverage"] if measured else None, tol.min_coverage, ">=", "",
+              f"fraction of the target's arc length the ink passes within "
+              f"{tol.coverage_radius * k:.4g} m of"),
+        length("goal", "goal_distance", tol.goal_tolerance, "last ink point to the task's end "
+               "point"),
+        Check("dwell", out["dwell"], tol.max_dwell, "<=", "",
+              f"fraction of the steps the pen spent within {tol.dwell_radius * k:.4g} m of its "
+              "last position"),
+    ]
+    out["checks"] = checks
+    out["failed"] = failed_checks(checks)
+    out["is_success"] = not out["failed"]
     return out
 
 
@@ -559,14 +591,24 @@ class _ShapeEnv(_WritingBase):
         frac = self._ink_fraction()
         out = judge_shape(self.to_data(self.ink_trace()), self.to_data(self.pen_path()),
                           self.target(), self.goal, self.tolerances, self.dtw_threshold,
-                          self.wspec.goal_tolerance / self.sim_scale)
-        if frac < self.wspec.min_ink_fraction:
-            out["failed"].insert(0, "ink_fraction")
+                          self.sim_scale)
+        least = self.wspec.min_ink_fraction
+        checks = [Check("ink_fraction", frac, least, ">=", "",
+                        "fraction of the episode's steps with the pen on the board"),
+                  *out.pop("checks")]
         if self._early is not None:  # decided before the end (only a partial episode lacks it)
-            if self._early["check"] not in out["failed"]:
-                out["failed"].insert(0, self._early["check"])
-            out["decided_failure"] = dict(self._early)
-        out.update(ink_fraction=frac, is_success=not out["failed"],
+            e = self._early
+            scale = self.sim_scale if e["check"] == "hausdorff" else 1.0
+            decided = Check(e["check"], e["value"] * scale, e["bound"] * scale,
+                            "<=" if e["check"] == "hausdorff" else ">=",
+                            "m" if e["check"] == "hausdorff" else "",
+                            f"decided at step {e['step']}: {e['reason']}")
+            at = [c.name for c in checks].index(decided.name)
+            if checks[at].passed:  # the partial episode's own measure does not show it yet
+                checks[at] = decided
+            out["decided_failure"] = dict(e)
+        out.update(ink_fraction=frac, checks=checks_json(checks),
+                   failed=failed_checks(checks), is_success=not failed_checks(checks),
                    dtw_threshold=self.dtw_threshold,
                    tolerances=dataclasses.asdict(self.tolerances))
         return out
@@ -612,8 +654,8 @@ class HelloWorldLetterEnv(_ShapeEnv):
     - shape: the symmetric Hausdorff distance between ink and target ≤ the letter's
       `hausdorff` tolerance ({hw_hausdorff} cm), and the ink passes within `coverage_radius`
       ({hw_coverage} cm) of the target along ≥ 90 % of its arc length;
-    - end: the last ink point lies within 1 cm of the letter's end point (the common end point
-      of its demos: the letter was finished);
+    - end: the last ink point lies within `goal_tolerance` ({hw_goal} cm) of the letter's end
+      point (the common end point of its demos: the letter was finished);
     - timing: the pen spent ≤ `max_dwell` ({hw_dwell}) of the steps within 1 cm of its last
       position (it wrote the letter rather than rushing to its end and waiting).
 
@@ -622,13 +664,18 @@ class HelloWorldLetterEnv(_ShapeEnv):
     [tolerances], values in `tasks/writing_tolerances.toml`): `hausdorff` = max(1.5 cm, the
     largest Hausdorff distance between two of its demos), `coverage_radius` = max(1 cm, the
     largest radius within which one demo covers 90 % of another's arc length), `max_dwell` =
-    min(0.8, 1.5 × the largest dwell of a demo). The ink may thus differ from the target as
-    much as another demonstration of the letter does, and no more. Replayed with every
+    min(0.8, 1.5 × the largest dwell of a demo), `goal_tolerance` = max(1 cm, min(a tenth of
+    the letter's size, `coverage_radius`)), the size being the median bounding-box diagonal
+    of its demos. The ink may thus differ from the target as much as another demonstration of
+    the letter does, and no more, and may stop short of (or run past) the letter's end by a
+    tenth of the letter, as long as that is within the demos' spread. Replayed with every
     perturbation family of `clfd_bench.execution.perturb`, each demo and its 2× slower, 1.5×
     faster, noisy (3 mm) and start-offset (1 cm) variants succeed, and time-reversed,
     other-letter, half, straight-line, rush-and-wait, mirrored, drifting and teleporting ones
     fail. `info` reports `ink_fraction`, `dtw`, `hausdorff`, `coverage`, `goal_distance` (m),
-    `dwell`, `failed` (the names of the failed checks), `dtw_threshold` and `tolerances`.
+    `dwell`, `failed` (the names of the failed checks), `dtw_threshold`, `tolerances`, and
+    `checks`: every check as `clfd_bench.envs.checks.Check.to_json` (ink_fraction, dtw,
+    hausdorff, coverage, goal, dwell: measured value, bound, comparison, lengths in m).
 
     Two checks can only get worse as the episode goes on, and `decided_failure()` reports them
     as soon as they break (the episode itself still runs to its horizon): an ink point farther
@@ -649,6 +696,10 @@ class HelloWorldLetterEnv(_ShapeEnv):
 
     ## Version History
 
+    - v3: the end point's bound is derived per letter (a tenth of the letter's size, within its
+      coverage radius, at least 1 cm: 1.07-2.08 cm) instead of 1 cm for every letter; the
+      dwell check's radius stays 1 cm as its own constant; `info["checks"]` reports every
+      check's value and bound.
     - v2: the shape tolerances allow what separates the letter's demos at most (the largest
       pairwise Hausdorff distance and covering radius), not the median pair: learners that
       reproduce a letter as well as its own demonstrators failed 1 in 4 demos.
@@ -684,7 +735,7 @@ class LasaShapeEnv(_ShapeEnv):
 
     ## Observation Space
 
-    As `clfd/HelloWorld-<letter>-v2`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
+    As `clfd/HelloWorld-<letter>-v3`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
 
     ## Rewards
 
@@ -694,19 +745,20 @@ class LasaShapeEnv(_ShapeEnv):
 
     Truncated after the demo length (1000 steps) + 60 settle steps (or the `horizon` reset
     option); terminated by a physics blow-up or a motion-limit failure. Success is decided on
-    the ink against the target demo, both in LASA units, as for `clfd/HelloWorld-<letter>-v2`
+    the ink against the target demo, both in LASA units, as for `clfd/HelloWorld-<letter>-v3`
     (`judge_shape`): the pen on the board for ≥ 90 % of the steps; summed DTW ≤ the paper's
     LASA threshold (2191); symmetric Hausdorff distance ≤ the shape's `hausdorff` tolerance
     ({lasa_hausdorff} units); the ink within `coverage_radius` ({lasa_coverage} units)
-    of the target along ≥ 90 % of its arc length; the last ink point within 1 cm on the board
-    (3.3 units) of the goal (LASA's origin); and the pen within 3.3 units of its last position
-    for ≤ `max_dwell` ({lasa_dwell}) of the steps. The tolerances are derived from the shape's 7
-    demos by the procedure of `clfd/HelloWorld-<letter>-v2` (`tasks/writing.toml`
-    [tolerances]; the floors are 1.5 cm and 1 cm on the board, i.e. 5.0 and 3.3 units; values
-    in `tasks/writing_tolerances.toml`). `info` reports `ink_fraction`, `dtw`, `hausdorff`,
-    `coverage`, `goal_distance`, `dwell` (LASA units), `failed`, `dtw_threshold` and
-    `tolerances`. Failures decided before the end are reported by `decided_failure()` as for
-    the letters.
+    of the target along ≥ 90 % of its arc length; the last ink point within `goal_tolerance`
+    ({lasa_goal} units) of the goal (LASA's origin); and the pen within 3.3 units (1 cm on the
+    board) of its last position for ≤ `max_dwell` ({lasa_dwell}) of the steps. The tolerances
+    are derived from the shape's 7 demos by the procedure of `clfd/HelloWorld-<letter>-v3`
+    (`tasks/writing.toml` [tolerances]; the floors are 1.5 cm and 1 cm on the board, i.e. 5.0
+    and 3.3 units; values in `tasks/writing_tolerances.toml`). `info` reports
+    `ink_fraction`, `dtw`, `hausdorff`, `coverage`, `goal_distance`, `dwell` (LASA units),
+    `failed`, `dtw_threshold`, `tolerances` (LASA units) and `checks` (as for the letters, in
+    metres on the board: LASA units × 0.003). Failures decided before the end are reported by
+    `decided_failure()` as for the letters.
 
     Limits: for `Line` a straight line from start to goal is the shape itself, so a straight
     stroke drawn at the demo's pace succeeds, as does the "mirrored" path (it stays on the same
@@ -725,6 +777,8 @@ class LasaShapeEnv(_ShapeEnv):
 
     ## Version History
 
+    - v3: the end point's bound is derived per shape as for the letters (1.18-1.96 cm on the
+      board instead of 1 cm); `info["checks"]` reports every check (metres on the board).
     - v2: the shape tolerances allow what separates the shape's demos at most (the largest
       pairwise Hausdorff distance and covering radius), not the median pair.
     - v1: success judged on the shape and timing of the ink (Hausdorff, arc-length coverage and
@@ -771,7 +825,7 @@ class HelloWorldTextEnv(_WritingBase):
 
     ## Observation Space
 
-    As `clfd/HelloWorld-<letter>-v2`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
+    As `clfd/HelloWorld-<letter>-v3`: `ee_pos`, `ee_quat`, `qpos`, `qvel`, `pen_tip`, `pen_down`.
 
     ## Rewards
 
@@ -785,12 +839,14 @@ class HelloWorldTextEnv(_WritingBase):
     steps; no stroke of ink drawn while the pen was commanded up is longer than 2 mm (a dot
     where it leaves or meets the board, no stroke connecting letters); and every letter, its
     run's ink mapped back to HelloWorld letter units (m, before the 0.3 scaling), passes the
-    criterion of `clfd/HelloWorld-<letter>-v2` against demo j of that letter with that
+    criterion of `clfd/HelloWorld-<letter>-v3` against demo j of that letter with that
     letter's tolerances (`judge_shape`: DTW ≤ 18.21 m, Hausdorff, coverage, end point within
-    1 cm, dwell; on the board these lengths are 0.3× as large). `info["letters"]` holds each
-    letter's measures, `info["letter_<measure>"]` lists them, `info["failed"]` names the
-    failed checks, `info["stray_ink"]` is the length of the longest ink stroke drawn with the
-    pen up (m on the board).
+    the letter's `goal_tolerance`, dwell; on the board these lengths are 0.3× as large).
+    `info["letters"]` holds each letter's measures (letter units), `info["letter_<measure>"]`
+    lists them, `info["failed"]` names the failed checks, `info["stray_ink"]` is the length of
+    the longest ink stroke drawn with the pen up (m on the board). `info["checks"]` holds every
+    check (`clfd_bench.envs.checks.Check.to_json`, lengths in m on the board): `strokes`,
+    `ink_fraction`, `stray_ink`, then each letter's five, named e.g. "letter 0 (h): goal".
 
     ## Arguments
 
@@ -803,6 +859,8 @@ class HelloWorldTextEnv(_WritingBase):
 
     ## Version History
 
+    - v3: every letter judged by the letter envs' v3 criterion (the end point's bound derived
+      per letter); `info["checks"]` reports every check of the text and of each letter.
     - v2: every letter judged by the letter envs' v2 tolerances.
     - v1: every letter judged by the letter envs' v1 criterion (shape, end point and timing,
       besides DTW); no ink allowed while the pen is up; the pen lifts 3 cm, travels and lowers
@@ -934,26 +992,29 @@ class HelloWorldTextEnv(_WritingBase):
         out: dict[str, Any] = {"ink_fraction": frac, "strokes": len(runs),
                                "stray_ink": stray_len, "dtw_threshold": self.dtw_threshold,
                                "letters": []}
-        failed = []
-        if len(runs) != len(self.letters):
-            failed.append("strokes")
-        if frac < self.wspec.min_ink_fraction:
-            failed.append("ink_fraction")
-        if stray_len > self.wspec.text_stray_ink:
-            failed.append("stray_ink")
+        checks = [
+            Check.flag("strokes", len(runs) == len(self.letters),
+                       f"{len(runs)} pen-down runs for {len(self.letters)} letters"),
+            Check("ink_fraction", frac, self.wspec.min_ink_fraction, ">=", "",
+                  "fraction of the pen-down steps with the pen on the board"),
+            Check("stray_ink", stray_len, self.wspec.text_stray_ink, "<=", "m",
+                  "longest ink stroke drawn while the pen was commanded up"),
+        ]
         targets = self.demo_letters(self.demo)
         for k, (a, b) in enumerate(runs[: len(self.letters)]):
             c = self.letters[k]
             res = judge_shape(self.surface_to_letter(k, xy[a:b][flags[a:b]]),
                               self.surface_to_letter(k, xy[a:b]), targets[k], self._goals[c],
-                              self.tolerances[c], self.dtw_threshold, self.wspec.goal_tolerance)
+                              self.tolerances[c], self.dtw_threshold, self.scale)
             res.pop("is_success")
+            checks += [dataclasses.replace(chk, name=f"letter {k} ({c}): {chk.name}")
+                       for chk in res.pop("checks")]
             out["letters"].append(res)
-            failed += [f"letter {k} ({c}): {f}" for f in res["failed"]]
         for key in ("dtw", "hausdorff", "coverage", "goal_distance", "dwell"):
             out[f"letter_{key}"] = [r[key] for r in out["letters"]]
-        out["failed"] = failed
-        out["is_success"] = not failed
+        out["checks"] = checks_json(checks)
+        out["failed"] = failed_checks(checks)
+        out["is_success"] = not out["failed"]
         return out
 
 
@@ -970,6 +1031,7 @@ def _tolerance_ranges() -> dict[str, str]:
     for key, ds, unit_scale, digits in (("hw", "helloworld", 100.0, 2), ("lasa", "lasa", 1.0, 1)):
         for name, field, scale in (("hausdorff", "hausdorff", unit_scale),
                                    ("coverage", "coverage_radius", unit_scale),
+                                   ("goal", "goal_tolerance", unit_scale),
                                    ("dwell", "max_dwell", 1.0)):
             vals = [float(row[field]) * scale for row in table[ds].values()]
             out[f"{key}_{name}"] = f"{min(vals):.{digits}f}–{max(vals):.{digits}f}"
@@ -981,8 +1043,8 @@ def _fill_docstrings() -> None:
         ranges = _tolerance_ranges()
     except (OSError, KeyError, ValueError) as exc:  # a broken table must not break the import
         ranges = {k: f"(unavailable: {exc!r})" for k in (
-            "hw_hausdorff", "hw_coverage", "hw_dwell", "lasa_hausdorff", "lasa_coverage",
-            "lasa_dwell")}
+            "hw_hausdorff", "hw_coverage", "hw_goal", "hw_dwell", "lasa_hausdorff",
+            "lasa_coverage", "lasa_goal", "lasa_dwell")}
     for cls in (HelloWorldLetterEnv, LasaShapeEnv):
         doc = cls.__doc__ or ""
         for key, text in ranges.items():

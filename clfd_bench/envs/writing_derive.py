@@ -22,11 +22,22 @@ For a task with demos D_1..D_N ([T, 2] each, data units; the board is `sim_scale
   which D_i passes along a fraction `coverage_fraction` (q) of D_j's arc length; and
   `min_coverage` = q: the ink must pass within that radius along q of the target, as every
   other demo does.
+- `goal_tolerance` = max(goal_floor / sim_scale, min(goal_size_fraction × demo_size,
+  coverage_radius)), where demo_size is the median over the demos of their bounding-box
+  diagonal: the last ink point must lie within it of the task's end point. All demos of a
+  task end at the same point (spread 0 there), so the bound is sized by what an observer
+  compares an end gap with, the letter: a stroke stopping short of (or running past) the end
+  by a tenth of the letter's size still finishes the letter, while a letter cut short or
+  drifting away (`drift`: 15 % of the size, >= 2 cm) ends outside (1.1x the bound at the
+  least). It is never more than the coverage radius (an end farther from the target's end
+  than the demonstrators' strokes lie from one another is another stroke), and never less
+  than the floor (1 cm on the board: 3 mm of noise and tracking error must pass).
 - `max_dwell` = min(dwell_cap, dwell_factor × max over k of dwell(D_k)), where dwell(D_k) is
   the fraction of the samples of D_k, followed by the 1 s (60 samples) the pen holds its last
-  point in a default rollout, that lie within the goal tolerance (1 cm on the board) of the
-  last point: the pen may rest at its end point for longer than any demo did, by the factor,
-  but not for most of the episode.
+  point in a default rollout, that lie within `dwell_radius` (1 cm on the board) of the last
+  point: the pen may rest at its end point for longer than any demo did, by the factor, but
+  not for most of the episode. `dwell_radius` says "at rest", not "at the goal", so it is
+  its own constant, not the end bound (`tasks/writing.toml` [tolerances]).
 """
 
 from __future__ import annotations
@@ -44,6 +55,7 @@ __all__ = [
     "demo_dwell",
     "derive_task_tolerances",
     "derive_tolerances",
+    "demo_size",
     "dumps_tolerances",
     "tolerances_path",
 ]
@@ -91,21 +103,29 @@ def demo_dwell(demo: np.ndarray, radius: float, hold_steps: int) -> float:
     return float((np.count_nonzero(d <= radius) + hold_steps) / (len(demo) + hold_steps))
 
 
+def demo_size(demos: np.ndarray) -> float:
+    """The size of a task: the median over its demos [N, T, 2] of their bounding-box diagonal
+    (data units)."""
+    demos = np.asarray(demos, dtype=float)
+    return float(np.median(np.linalg.norm(demos.max(axis=1) - demos.min(axis=1), axis=-1)))
+
+
 def derive_task_tolerances(demos: np.ndarray, sim_scale: float, procedure: dict[str, float],
-                           goal_tolerance: float, hold_steps: int) -> dict[str, float]:
+                           hold_steps: int) -> dict[str, float]:
     """The tolerances of one task (see the module docstring).
 
     Args:
         demos: [N, T, 2] the task's demos, data units.
         sim_scale: metres on the board per data unit.
-        procedure: `tasks/writing.toml` [tolerances] (the `PROCEDURE_KEYS`).
-        goal_tolerance: the dwell radius, metres on the board.
+        procedure: `tasks/writing.toml` [tolerances] (the `PROCEDURE_KEYS`; floors and
+            `dwell_radius` in metres on the board).
         hold_steps: samples the pen holds its last point after a default rollout.
 
     Returns:
-        {hausdorff, coverage_radius, min_coverage, max_dwell} (lengths in data units) and the
-        statistics they come from (demo_hausdorff_max, demo_covering_radius_max,
-        demo_dwell_max) or describe the spread (demo_hausdorff_median).
+        {hausdorff, coverage_radius, min_coverage, max_dwell, goal_tolerance, dwell_radius}
+        (lengths in data units) and the statistics they come from (demo_hausdorff_max,
+        demo_covering_radius_max, demo_dwell_max, demo_size) or describe the spread
+        (demo_hausdorff_median).
     """
     demos = np.asarray(demos, dtype=float)
     n = len(demos)
@@ -115,17 +135,23 @@ def derive_task_tolerances(demos: np.ndarray, sim_scale: float, procedure: dict[
     pairs_h = [hausdorff(demos[i], demos[j]) for i in range(n) for j in range(i + 1, n)]
     q = float(p["coverage_fraction"])
     radii = [covering_radius(demos[j], demos[i], q) for i in range(n) for j in range(n) if i != j]
-    dwell = [demo_dwell(d, goal_tolerance / sim_scale, hold_steps) for d in demos]
-    h_max, r_max = float(max(pairs_h)), float(max(radii))
+    dwell_radius = p["dwell_radius"] / sim_scale
+    dwell = [demo_dwell(d, dwell_radius, hold_steps) for d in demos]
+    h_max, r_max, size = float(max(pairs_h)), float(max(radii)), demo_size(demos)
+    cover = max(p["coverage_floor"] / sim_scale, p["coverage_factor"] * r_max)
     return {
         "hausdorff": max(p["hausdorff_floor"] / sim_scale, p["hausdorff_factor"] * h_max),
-        "coverage_radius": max(p["coverage_floor"] / sim_scale, p["coverage_factor"] * r_max),
+        "coverage_radius": cover,
         "min_coverage": q,
         "max_dwell": min(p["dwell_cap"], p["dwell_factor"] * max(dwell)),
+        "goal_tolerance": max(p["goal_floor"] / sim_scale,
+                              min(p["goal_size_fraction"] * size, cover)),
+        "dwell_radius": dwell_radius,
         "demo_hausdorff_max": h_max,
         "demo_hausdorff_median": float(np.median(pairs_h)),
         "demo_covering_radius_max": r_max,
         "demo_dwell_max": float(max(dwell)),
+        "demo_size": size,
     }
 
 
@@ -139,8 +165,7 @@ def derive_tolerances(datasets: tuple[str, ...] = DATASETS) -> dict[str, dict[st
     for name in datasets:
         ds = load_dataset(name)
         out[name] = {t.name: derive_task_tolerances(np.asarray(t.demos), float(t.sim_scale),
-                                                    spec.tolerance_procedure,
-                                                    spec.goal_tolerance, SETTLE_STEPS)
+                                                    spec.tolerance_procedure, SETTLE_STEPS)
                      for t in ds.tasks}
     return out
 
@@ -151,7 +176,7 @@ Writing envs: per-task success tolerances. GENERATED by `python eval/make_task_s
 procedure constants in tasks/writing.toml [tolerances] (or the code) and regenerate.
 
 Lengths are in the task's data units: HelloWorld metres (on the board, and letter units for
-clfd/HelloWorld-v2), LASA units (0.003 m on the board each).
+clfd/HelloWorld-v3), LASA units (0.003 m on the board each).
 - hausdorff = max(hausdorff_floor / sim_scale, hausdorff_factor * demo_hausdorff_max):
   the largest two-sided deviation of the ink from the target demo; demo_hausdorff_max /
   _median = max / median over the task's demo pairs of their Hausdorff distance.
@@ -160,9 +185,13 @@ clfd/HelloWorld-v2), LASA units (0.003 m on the board each).
   coverage_radius along min_coverage of the target's arc length; demo_covering_radius_max
   = max over ordered demo pairs of the radius within which one demo covers that fraction
   of the other.
+- goal_tolerance = max(goal_floor / sim_scale, min(goal_size_fraction * demo_size,
+  coverage_radius)): the last ink point must lie within it of the task's end point;
+  demo_size = the median over the demos of their bounding-box diagonal.
 - max_dwell = min(dwell_cap, dwell_factor * demo_dwell_max): the largest fraction of the
-  episode's steps the pen may spend within the goal tolerance of its last point;
-  demo_dwell_max = the largest such fraction over the demos (each followed by 1 s of holding).
+  episode's steps the pen may spend within dwell_radius (= dwell_radius of the procedure /
+  sim_scale) of its last point; demo_dwell_max = the largest such fraction over the demos
+  (each followed by 1 s of holding).
 Procedure constants (tasks/writing.toml [tolerances]):
 {procedure}
 """

@@ -12,6 +12,8 @@ One concept per module (import what you need; nothing heavy is imported here):
 - `execute`: `execute`, `execute_predictions`, `ExecResult`, failure kinds.
 - `scoring`: `sim_fields` (success matrix, its CL metrics), `failure_counts`.
 - `cache`: keys and summaries of the rollout cache (the file: `clfd_bench.runs.RunDir`).
+- `borderline`: the executions nearest each check's bound, both sides (pure selection).
+- `final_checks`: `gather_executions`, saved runs' executions with their final checks.
 - `fingerprint`: `sim_fingerprint`, `sim_provenance`.
 - `saved_run`: a run's learned tasks and saved predictions (read through `clfd_bench.runs`).
 - `evaluate`: `evaluate_run`, a saved run scored by execution (`clfd-bench evaluate`).

@@ -17,7 +17,7 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
 #: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
 DEFAULT_ENVS = (
-    "clfd/HelloWorld-h-v2", "clfd/LASA-Angle-v2", "clfd/BoxOpening-v2",
+    "clfd/HelloWorld-h-v3", "clfd/LASA-Angle-v3", "clfd/BoxOpening-v2",
     "clfd/BottleShelving-v2", "clfd/PlateStacking-v2", "clfd/Pouring-v2",
     "clfd/WineGlass-v2", "clfd/PanToStove-v2", "clfd/ObstacleRotate-v2",
     "clfd/MatFolding-v2", "clfd/Scoop-v2",

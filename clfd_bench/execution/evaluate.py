@@ -14,6 +14,7 @@ the simulator invalidates the cache by itself. ``force=True`` ignores it.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import time
 from collections.abc import Sequence
@@ -31,7 +32,7 @@ from clfd_bench.execution.scoring import failure_counts, sim_fields
 from clfd_bench.progress import progress
 from clfd_bench.runs import RunDir
 
-__all__ = ["RolloutObserver", "evaluate_run"]
+__all__ = ["EvalPoint", "RolloutObserver", "evaluate_run", "evaluation_points", "worker_init"]
 
 
 def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, dict, float]:
@@ -42,7 +43,9 @@ def _run_job(job: tuple[str, str, int, np.ndarray, float | None]) -> tuple[str, 
     return key, res.summary(), res.wall_s
 
 
-def _worker_init() -> None:
+def worker_init() -> None:
+    """Initializer of a process executing rollouts: it dies with its parent, shows no
+    progress bars and runs torch on one thread."""
     import os
 
     from clfd_bench.procs import die_with_parent
@@ -68,6 +71,43 @@ def _env_ids(dataset: str, task_names: Sequence[str]) -> list[str | None]:
             out.append(None)
     return out
 
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalPoint:
+    """One evaluation point of a saved run: the prediction of task ``task`` from demo
+    ``demo``'s start, made after learning task ``after_task``.
+
+    Attributes:
+        after_task, task, demo: the point (``task <= after_task``).
+        env_id: task ``task``'s env.
+        key: its rollout-cache key (:func:`clfd_bench.execution.cache.prediction_key`).
+        trajectory: the prediction ``[T, D]`` in data units.
+    """
+
+    after_task: int
+    task: int
+    demo: int
+    env_id: str
+    key: str
+    trajectory: np.ndarray
+
+
+def evaluation_points(run: SavedRun, settle_s: float | None = None) -> list[EvalPoint]:
+    """Every evaluation point of ``run`` whose task has an env, in order (after task ``i``,
+    task ``j <= i``, demo ``d``), with its cache key for settling time ``settle_s``."""
+    env_ids = _env_ids(run.dataset, run.task_names[:run.num_learned])
+    out: list[EvalPoint] = []
+    for i in range(run.num_learned):
+        preds = load_run_predictions(run.path, i)
+        for j in range(i + 1):
+            env_id = env_ids[j]
+            if env_id is None:
+                continue
+            for d, traj in enumerate(preds[j]):
+                out.append(EvalPoint(i, j, d, env_id,
+                                     prediction_key(env_id, d, settle_s, traj), traj))
+    return out
 
 
 class RolloutObserver(Protocol):
@@ -128,19 +168,12 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
     # Every evaluation point -> its key; the distinct keys still to execute -> their job.
     points: list[tuple[int, int, int, str, np.ndarray]] = []
     jobs: dict[str, tuple[str, str, int, np.ndarray, float | None]] = {}
-    for i in range(m):
-        preds = load_run_predictions(run_dir, i)
-        for j in range(i + 1):
-            env_id = env_ids[j]
-            if env_id is None:
-                continue
-            for d, traj in enumerate(preds[j]):
-                key = prediction_key(env_id, d, settle_s, traj)
-                points.append((i, j, d, key, traj))
-                if not np.isfinite(traj).all():
-                    cache[key] = nonfinite_summary(d)
-                elif (key not in cache or observer is not None) and key not in jobs:
-                    jobs[key] = (key, env_id, d, traj, settle_s)
+    for p in evaluation_points(run, settle_s):
+        points.append((p.after_task, p.task, p.demo, p.key, p.trajectory))
+        if not np.isfinite(p.trajectory).all():
+            cache[p.key] = nonfinite_summary(p.demo)
+        elif (p.key not in cache or observer is not None) and p.key not in jobs:
+            jobs[p.key] = (p.key, p.env_id, p.demo, p.trajectory, settle_s)
 
     # One task's env after the other: each env is built once (the env cache is bounded).
     first_seen = {env_id: k for k, env_id in enumerate(dict.fromkeys(e for e in env_ids if e))}
@@ -172,7 +205,7 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
             ctx = multiprocessing.get_context("spawn")  # no inherited GL / torch threads
             with concurrent.futures.ProcessPoolExecutor(
                     max_workers=min(workers, len(jobs)), mp_context=ctx,
-                    initializer=_worker_init) as pool:
+                    initializer=worker_init) as pool:
                 for result in pool.map(_run_job, jobs.values(), chunksize=1):
                     done(*result)
                     bar.update(1)

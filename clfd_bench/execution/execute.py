@@ -14,6 +14,11 @@ Every failure has a kind (:data:`FAILURE_KINDS`): the env's executability checks
 the end, or as soon as the env decided it, :meth:`clfd_bench.envs.base.PandaEnv.decided_failure`;
 a rollout that stops there does not meet a motion limit it would have broken later). An
 execution counts its first failure.
+
+Every env reports the checks behind its success decision in ``info["checks"]``
+(:class:`clfd_bench.envs.checks.Check` as JSON); :meth:`ExecResult.summary` keeps them, and a
+task failure's reason names the failed checks first (``"task not achieved: goal 0.0112 m >
+0.01 m"``). An env that reports none keeps the older text (its task-specific info values).
 """
 
 from __future__ import annotations
@@ -26,11 +31,13 @@ from typing import Any
 
 import numpy as np
 
+from clfd_bench.envs.checks import Check, check_from_json
 from clfd_bench.execution.env_pool import get_env
 from clfd_bench.execution.trace import FrameHook, Trace, tracer
 from clfd_bench.io import json_safe
 
-__all__ = ["FAILURE_KINDS", "ExecResult", "execute", "execute_predictions", "failure_kind"]
+__all__ = ["FAILURE_KINDS", "ExecResult", "execute", "execute_predictions", "failure_kind",
+           "failure_reason"]
 
 #: Kinds of failure, in the order reports list them.
 FAILURE_KINDS = ("reflex", "tracking", "unreachable", "collision", "blowup", "diverged", "task")
@@ -51,14 +58,18 @@ class ExecResult:
         mean_rotation_error: mean rotation error (rad) of the hand frame.
         failure_reason: None on success; else why: the env's own reason for ending the episode
             (a motion limit, tracking, reach, collision or physics blow-up, naming the limit
-            and the step), or "task not achieved" with the env's task-specific info (e.g. DTW
-            of the ink, ink fraction, lid angle), or "task failed, decided after k of H steps"
-            when the rollout stopped on a decided failure (``stop_when_decided``).
+            and the step), or "task not achieved: " and the failed checks
+            (:meth:`Check.describe`, e.g. "goal 0.0112 m > 0.01 m") followed by the env's
+            task-specific info (e.g. DTW of the ink, ink fraction, lid angle), or "task failed,
+            decided after k of H steps" when the rollout stopped on a decided failure
+            (``stop_when_decided``).
         failure_kind: None on success; else one of :data:`FAILURE_KINDS`.
         steps: env steps run (trajectory + settling; fewer when the rollout stopped on a
             decided failure, see ``execute``).
         wall_s: wall-clock seconds of the rollout.
-        info: the env's final info, JSON-safe (non-finite floats become None).
+        info: the env's final info, JSON-safe (non-finite floats become None); its
+            ``checks`` (when the env reports them) are the criterion's checks, see
+            :meth:`checks`.
         trace: the step-by-step :class:`Trace` when requested, else None.
         frames: rendered frames ``[H, W, 3]`` uint8 when recorded, else None.
     """
@@ -87,7 +98,26 @@ class ExecResult:
             "failure_reason": self.failure_reason,
             "failure_kind": self.failure_kind,
             "steps": self.steps,
+            "stopped_early": self.stopped_early,
+            "checks": self.checks_json(),
         }
+
+    @property
+    def stopped_early(self) -> bool:
+        """True when the rollout stopped on a decided failure before its horizon (its checks
+        then describe the partial episode; see :func:`execute`)."""
+        return isinstance(self.info.get("stopped_early"), Mapping)
+
+    def checks_json(self) -> list[dict[str, Any]] | None:
+        """The env's final ``info["checks"]`` (:meth:`clfd_bench.envs.checks.Check.to_json`
+        dicts, in the env's order), or None when the env reports none."""
+        checks = self.info.get("checks")
+        return None if checks is None else [dict(c) for c in checks]
+
+    def checks(self) -> list[Check] | None:
+        """The env's final checks as :class:`Check` objects, or None when it reports none."""
+        raw = self.checks_json()
+        return None if raw is None else [check_from_json(c) for c in raw]
 
 
 def _finite_or_none(x: Any) -> float | None:
@@ -95,7 +125,11 @@ def _finite_or_none(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
+def failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
+    """None on success; else why, in words (see :attr:`ExecResult.failure_reason`): the env's
+    own reason for ending the episode, the decided failure a rollout stopped on, or "task not
+    achieved" naming the failed checks of ``info["checks"]`` first (:meth:`Check.describe`),
+    then the env's other scalar info values."""
     if success:
         return None
     if info.get("failure_reason"):
@@ -104,6 +138,7 @@ def _failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
     if isinstance(stopped, Mapping):
         return (f"task failed, decided after {stopped['stopped_at']} of {stopped['horizon']} "
                 f"steps (the rollout stopped there): {stopped['reason']}")
+    failed = [c.describe() for c in _info_checks(info) if not c.passed]
     parts = []
     for key, value in info.items():
         if key in _BASE_INFO_KEYS:
@@ -115,8 +150,16 @@ def _failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
         elif isinstance(value, (list, tuple)) and all(
                 isinstance(v, (int, float, np.integer, np.floating)) for v in value):
             parts.append(f"{key}=[{', '.join(f'{float(v):.4g}' for v in value)}]")
-    return "task not achieved" + (f" ({', '.join(parts)})" if parts else "")
+    head = "task not achieved" + (f": {'; '.join(failed)}" if failed else "")
+    return head + (f" ({', '.join(parts)})" if parts else "")
 
+
+def _info_checks(info: Mapping[str, Any]) -> list[Check]:
+    """``info["checks"]`` as :class:`Check` objects (empty when the env reports none)."""
+    raw = info.get("checks")
+    if not isinstance(raw, (list, tuple)):
+        return []
+    return [check_from_json(c) for c in raw if isinstance(c, Mapping)]
 
 
 def failure_kind(success: bool, info: Mapping[str, Any]) -> str | None:
@@ -143,7 +186,7 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
         env: a clfd-bench env (e.g. from :func:`get_env`; with ``record``, made with
             ``render=True``).
         trajectory: ``[T, D]`` in the dataset's units (see :func:`execute_predictions`); for
-            ``clfd/HelloWorld-v2`` one ``[T_k, 2]`` array per letter.
+            ``clfd/HelloWorld-v3`` one ``[T_k, 2]`` array per letter.
         demo: the demo to reset to (``reset(options={"demo": demo})``).
         record: keep the env's own rendered frames in ``ExecResult.frames`` (``fps`` per
             simulated second).
@@ -177,7 +220,7 @@ def execute(env, trajectory: np.ndarray | Sequence[np.ndarray], demo: int, *,
         mean_tracking_error=float(err.mean()) if err.size else math.nan,
         max_tracking_error=float(err.max()) if err.size else math.nan,
         mean_rotation_error=float(rot.mean()) if rot.size else math.nan,
-        failure_reason=_failure_reason(bool(res.success), res.info),
+        failure_reason=failure_reason(bool(res.success), res.info),
         failure_kind=failure_kind(bool(res.success), res.info),
         steps=int(res.steps),
         wall_s=wall,

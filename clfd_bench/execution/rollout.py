@@ -60,7 +60,7 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
         env: a clfd-bench env (from `gymnasium.make("clfd/...")` or the class).
         trajectory: [T, D] in the data units of the env's dataset: 7-D poses (px, py, pz m,
             qw, qx, qy, qz) for RoboTasks, 2-D points for writing (HelloWorld: m, LASA: native
-            units); for `clfd/HelloWorld-v2`, see its docstring.
+            units); for `clfd/HelloWorld-v3`, see its docstring.
         demo: the demo whose start configuration and scene to reset to (writing: whose
             trajectory is the target); None draws one with `seed`.
         settle_s: seconds after the trajectory.

@@ -171,11 +171,14 @@ def cpu_provenance() -> dict[str, Any]:
     kernels and stuck at 50 with AVX-512, same seed; docs/snode.md). Returns ``model`` (from
     ``/proc/cpuinfo`` where there is one, else ``platform.processor()``), ``torch_capability``
     (``torch.backends.cpu.get_cpu_capability()``) and ``kernel_env``: the set variables of
-    :data:`KERNEL_ENV`.
+    :data:`KERNEL_ENV`, and ``blas``: the linear-algebra libraries and MKL's reproducibility
+    mode (:func:`clfd_bench.kernels.blas_provenance`).
     """
     import os
 
     import torch
+
+    from clfd_bench.kernels import blas_provenance
 
     model = platform.processor()
     try:
@@ -185,7 +188,8 @@ def cpu_provenance() -> dict[str, Any]:
     except OSError:
         pass
     return {"model": model, "torch_capability": torch.backends.cpu.get_cpu_capability(),
-            "kernel_env": {k: os.environ[k] for k in KERNEL_ENV if k in os.environ}}
+            "kernel_env": {k: os.environ[k] for k in KERNEL_ENV if k in os.environ},
+            "blas": blas_provenance()}
 
 
 def dataset_provenance(ds: Dataset) -> dict[str, Any]:
@@ -217,8 +221,8 @@ def results_document(
             ``num_params_by_part`` (``{part: [M]}`` or None), ``iterations_per_s_by_part``,
             ``iterations_by_part`` (optimiser steps each task ran; fewer than the config's
             ``iterations`` when the stop rule ended it; missing or None: not known),
-            ``train_cpu_s_by_part`` (CPU seconds of each task's training; None: not known),
-            ``final_loss_by_part``.
+            ``final_loss_by_part``; optionally ``train_cpu_s`` (``[M]``, this process's CPU
+            seconds per task, None where unknown; absent for external predictions).
         complete: every task of the run is learned.
         provenance: what ``results.json`` records as ``provenance``.
         checkpoint: the checkpoint file relative to the run directory (None: none).
@@ -247,10 +251,10 @@ def results_document(
         "metrics": list(metrics),
         "thresholds": thresholds,
         "train_time_s": state["train_time_s"],
+        "train_cpu_s": state.get("train_cpu_s"),
         "train_time_s_by_part": state["train_time_s_by_part"],
         "iterations_per_s_by_part": state["iterations_per_s_by_part"],
         "iterations_by_part": state.get("iterations_by_part"),
-        "train_cpu_s_by_part": state.get("train_cpu_s_by_part"),
         "final_loss_by_part": state["final_loss_by_part"],
         "num_params": state["num_params"],
         "num_params_by_part": state["num_params_by_part"],

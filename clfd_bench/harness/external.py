@@ -562,7 +562,6 @@ def score_predictions(
         "train_time_s_by_part": train_time_by_part,
         "iterations_per_s_by_part": None,
         "iterations_by_part": None,
-        "train_cpu_s_by_part": None,
         "final_loss_by_part": None,
         "num_params": num_params,
         "num_params_by_part": num_params_by_part,

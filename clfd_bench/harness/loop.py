@@ -92,15 +92,12 @@ class TrainStats:
             task early).
         final_loss: the task loss at the last iteration.
         loop_seconds: wall time of the iterations alone.
-        cpu_seconds: CPU time of the whole task (this process, all its threads; unlike
-            ``seconds``, not inflated by other processes sharing the cores).
     """
 
     seconds: float
     iterations: int
     final_loss: float
     loop_seconds: float
-    cpu_seconds: float = float("nan")
 
     @property
     def iterations_per_s(self) -> float:
@@ -170,7 +167,7 @@ def train_task(
     Raises:
         TrainingDivergedError: the loss became NaN/inf (lower ``lr``).
     """
-    start, cpu_start = time.perf_counter(), time.process_time()
+    start = time.perf_counter()
     spec, solver = batch_spec(cfg), solver_spec(cfg)
     method.train()
     method.on_task_start(task, data)
@@ -225,5 +222,4 @@ def train_task(
     loop_seconds = time.perf_counter() - loop_start
     method.on_task_end(task, data)
     method.eval()
-    return TrainStats(time.perf_counter() - start, done, loss_value, loop_seconds,
-                      time.process_time() - cpu_start)
+    return TrainStats(time.perf_counter() - start, done, loss_value, loop_seconds)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -138,10 +139,10 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
     return {
         "tasks": task_names,
         "train_time_s": [],
+        "train_cpu_s": [],
         "train_time_s_by_part": {p: [] for p in parts},
         "iterations_per_s_by_part": {p: [] for p in parts},
         "iterations_by_part": {p: [] for p in parts},
-        "train_cpu_s_by_part": {p: [] for p in parts},
         "final_loss_by_part": {p: [] for p in parts},
         "num_params": [],
         "num_params_by_part": {p: [] for p in parts},
@@ -244,9 +245,6 @@ def run_training(
         # runs saved before the stop rule existed ran every iteration of every task
         saved_state.setdefault("iterations_by_part", {
             kind: [config.part(kind).iterations] * done for kind in learner.parts})
-        # CPU times were not recorded before (None: not known)
-        saved_state.setdefault("train_cpu_s_by_part", {kind: [None] * done
-                                                       for kind in learner.parts})
         if done > n_tasks:
             raise RunMismatchError(
                 f"{out} already holds {done} learned tasks, more than the {n_tasks} asked for; "
@@ -260,6 +258,9 @@ def run_training(
                 "results will mix those float kernels with this one's (provenance.cpu_by_task "
                 "records which task was learned where; seeds reproduce a run on one CPU only)")
         saved_state["tasks"] = state["tasks"]
+        # a run saved before CPU time was recorded: unknown for its finished tasks
+        saved_state["train_cpu_s"] = (list(saved_state.get("train_cpu_s") or [])
+                                      + [None] * done)[:done]
         for metric in metrics:  # widen saved rows to the (possibly larger) task count
             saved_state["errors"][metric] = [
                 (row + [None] * n_tasks)[:n_tasks] for row in saved_state["errors"][metric]
@@ -278,6 +279,7 @@ def run_training(
         task = tasks[i]
         seed_i = task_seed(config.seed, i)
         times_by_part = {}
+        cpu_start = time.process_time()
         for kind, part in learner.parts.items():
             torch.manual_seed(seed_i)
             generator = torch.Generator().manual_seed(seed_i + 1)
@@ -286,11 +288,11 @@ def run_training(
             state["train_time_s_by_part"][kind].append(stats.seconds)
             state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
             state["iterations_by_part"][kind].append(stats.iterations)
-            state["train_cpu_s_by_part"][kind].append(stats.cpu_seconds)
             state["final_loss_by_part"][kind].append(stats.final_loss)
             state["num_params_by_part"][kind].append(part.method.num_params())
         provenance["cpu_by_task"].append(provenance["cpu"])
         state["train_time_s"].append(sum(times_by_part.values()))
+        state["train_cpu_s"].append(time.process_time() - cpu_start)
         state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
         state["stored_samples"].append(
             max(p.method.stored_samples() for p in learner.parts.values())

@@ -101,7 +101,9 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
 
     Keys in ``values``: the trajectory CL criteria and CL_score / CL_stability (with FS
     across the compared methods), ``BWT``, ``exec_ACC`` / ``exec_REM`` / ``exec_BWT`` (from
-    simulation, when the run executed), ``train_time_s`` (total), ``final_params``; and
+    simulation, when the run executed), ``train_time_s`` (total wall-clock), ``train_cpu_s``
+    (total CPU seconds of the training process, when every task recorded it),
+    ``final_params``; and
     ``failures``, the execution failures by kind summed over the runs; ``not_provided``, the
     keys a run could not fill (module docstring). ``exec_CL_score``: CL_score with ACC and REM
     from execution, for runs that executed and have all six criteria.
@@ -153,6 +155,9 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
                 row.failures[kind] = row.failures.get(kind, 0) + int(n)
         if res.get("train_time_s"):
             row.values["train_time_s"].append(float(sum(res["train_time_s"])))
+        cpu = res.get("train_cpu_s") or []
+        if cpu and len(cpu) == len(res.get("train_time_s") or []) and None not in cpu:
+            row.values["train_cpu_s"].append(float(sum(cpu)))
         if np.isfinite(size := _final_size(res)):
             row.values["final_params"].append(size)
     return [rows[m] for m in methods]
@@ -167,5 +172,5 @@ def _not_provided(results: dict[str, Any]) -> set[str]:
     if "num_params" in fields:
         missing.add("final_params")
     if "train_time_s" in fields:
-        missing.add("train_time_s")
+        missing |= {"train_time_s", "train_cpu_s"}
     return missing

@@ -77,6 +77,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("exec_BWT", "exec BWT"),
     ("exec_CL_score", "exec CL_score"),
     ("train_time_s", "train s"),
+    ("train_cpu_s", "train CPU s"),
     ("final_params", "params"),
 )
 """(key in MethodRow.values, column header), in table order."""
@@ -260,12 +261,12 @@ NOT_PROVIDED = "—"
 
 def format_cell(value: float | None, key: str) -> str:
     """A table cell: "-" for a missing value, parameter counts with thousands separators,
-    training seconds whole, everything else to two decimals."""
+    training seconds (wall-clock and CPU) whole, everything else to two decimals."""
     if value is None or math.isnan(value):
         return "-"
     if key == "final_params":
         return f"{value:,.0f}"
-    if key == "train_time_s":
+    if key in ("train_time_s", "train_cpu_s"):
         return f"{value:.0f}"
     return f"{value:.2f}"
 
@@ -313,7 +314,8 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
         "Cells: median [IQR] over runs. ACC, REM, BWT: trajectory accuracy (DTW under the "
         "paper's threshold); exec ACC/REM/BWT: the same from executing predictions in "
         "simulation. CL_score/CL_stability over ACC, REM, MS, TE, FS, SSS (FS across the "
-        "methods compared here); exec CL_score: CL_score with exec ACC and exec REM.",
+        "methods compared here); exec CL_score: CL_score with exec ACC and exec REM. train s / "
+        "train CPU s: wall-clock and CPU seconds of training (one process per run).",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),

@@ -2,7 +2,10 @@
 
 What the site holds (``SITE_DIR/``)::
 
-    index.html               leaderboard (sortable), paper comparison, figures, video wall
+    index.html               leaderboard (sortable), paper comparison, the profiles side by
+                             side (when ``clfd-bench paper profiles --out`` wrote
+                             profile_comparison.json into the results folder), figures,
+                             video wall
     runs/<run>.html          per run: R matrices as heat maps, CL metrics, execution
                              failures of its last model, config, provenance
     runs/<run>_R.png         the heat maps
@@ -16,7 +19,8 @@ What the site holds (``SITE_DIR/``)::
 Everything is read through the files' owner modules: the leaderboard
 (:mod:`clfd_bench.leaderboard.report`), the runs (:mod:`clfd_bench.execution.saved_run`,
 :mod:`clfd_bench.runs`), the paper's numbers (:mod:`clfd_bench.metrics.paper_numbers`, via
-the leaderboard). Links are relative, so the folder opens from disk and from any static host.
+the leaderboard), the profile comparison (:mod:`clfd_bench.studies.profile_compare`). Links
+are relative, so the folder opens from disk and from any static host.
 Every file is written atomically; pages, heat maps and copies are rewritten on every build,
 videos are rendered once (an interrupted build resumes where it stopped).
 """
@@ -44,6 +48,9 @@ from clfd_bench.site.wall import (
     render_tiles,
     tile_key,
 )
+from clfd_bench.studies.profile_compare import caption as comparison_caption
+from clfd_bench.studies.profile_compare import read_comparison
+from clfd_bench.studies.profile_compare import table as comparison_table
 
 __all__ = ["WALL_STYLE", "SiteResult", "build_site"]
 
@@ -481,12 +488,17 @@ def _build(results_dir: Path, out: Path, doc: dict[str, Any], *, videos: bool, d
     notes = [paper_doc.get("note") or ""]
     if (paper_doc.get("executed") or {}).get("note"):
         notes.append(paper_doc["executed"]["note"])
+    comparison = read_comparison(results_dir)
+    profiles = None
+    if comparison is not None:
+        head, rows = comparison_table(comparison)
+        profiles = {"caption": comparison_caption(comparison), "head": head, "rows": rows}
     index = env.get_template("index.html").render(
         **common, root="", title=f"clfd-bench leaderboard: {meta['dataset']} "
         f"({meta['profile']} profile)", profile=meta["profile"], grid=grid,
         table=_table(doc, paper, pages), paper_table=paper_doc.get("table"),
         paper_note=" ".join(n for n in notes if n),
-        figures=[f.relative_to(out).as_posix() for f in figures],
+        profiles=profiles, figures=[f.relative_to(out).as_posix() for f in figures],
         downloads=[d.relative_to(out).as_posix() for d in downloads],
         wall=_wall_rows(wall, order, runs, tasks,
                         {str(r["method"]): list(r.get("errors") or []) for r in doc["rows"]}),

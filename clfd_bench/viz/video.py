@@ -4,7 +4,7 @@
 after the last learned task), executes each selected task's prediction for one demo in its env
 and renders the rollout offscreen (EGL when ``MUJOCO_GL=egl``) to mp4 with imageio-ffmpeg:
 one video per task, one "all tasks" video joining them (the paper's Fig. 1), and for HelloWorld
-runs the text written with the learned letters in ``clfd/HelloWorld-v2``.
+runs the text written with the learned letters in ``clfd/HelloWorld-v3``.
 
 Drawn into the scene (MuJoCo user geoms added after ``update_scene``): the prediction (orange)
 and the demonstration (green) as the tool should follow them, the tool's path so far (blue;
@@ -41,6 +41,7 @@ __all__ = [
     "OverlayRenderer",
     "VideoStyle",
     "VideoWriter",
+    "closing_frame",
     "comparison_grid",
     "comparison_path",
     "frame_camera",
@@ -529,6 +530,57 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
     return result, count[0]
 
 
+def closing_frame(env: Any, trajectory: Any, demo: int, *, demonstration: Any | None = None,
+                  style: VideoStyle | None = None, settle_s: float | None = None):
+    """Executes ``trajectory`` from demo ``demo``'s start to its horizon and renders only its
+    closing frame: the final state, with the demonstration (green), the prediction (orange)
+    and the tool's whole path (blue; writing: the ink) drawn in, from the camera a video of
+    the rollout would use (framing the path, the robot and the props wherever they went).
+
+    Args:
+        env: a clfd-bench env (no render mode needed; e.g. ``env_pool.get_env(id)``).
+        trajectory: what ``clfd_bench.execution.execute.execute`` takes (data units).
+        demo: the demo to reset to.
+        demonstration: the demonstration in the same form (optional).
+        style: size and look (its caption and hold settings are not used).
+        settle_s: seconds of settling after the trajectory (default: the rollout's).
+
+    Returns:
+        ``(ExecResult with its trace, frame [H, W, 3] uint8)``.
+    """
+    import types
+
+    from clfd_bench.execution.execute import execute
+    from clfd_bench.execution.trace import tool_path
+
+    style = style or VideoStyle()
+    base = env.unwrapped
+    result = execute(env, trajectory, demo, trace=True, settle_s=settle_s)
+    tr = result.trace
+    target = tool_path(base, trajectory)
+    static = [(target, PREDICTION_RGBA)]
+    if demonstration is not None:
+        static.insert(0, (tool_path(base, demonstration), DEMONSTRATION_RGBA))
+    moving = [] if _is_writing(base) else [
+        _inflate(tr.hand_pos[::style.every], _ROBOT_REACH), _inflate(_robot_points(base),
+                                                                     _ROBOT_REACH),
+        *(_inflate(pose[::style.every, :3], _PROP_REACH) for pose in tr.objects.values())]
+    extra = np.concatenate([np.zeros((0, 3)), *moving, *(p for p, _ in static[:-1])])
+    camera = _camera_for(base, target, extra, style.width / style.height)
+    overlay = OverlayRenderer(base.model, dataclasses.replace(style, caption=False), camera)
+    try:
+        overlay.start(static, expected_steps=len(tr.time),
+                      lift=_BOARD_LIFT if _is_writing(base) else 0.0)
+        flags = [None] * len(tr.time) if tr.tool_down is None else [bool(f) for f in
+                                                                    tr.tool_down]
+        recorded = types.SimpleNamespace(tool_positions=list(tr.tool_pos),
+                                         tool_down_flags=flags)
+        frame = overlay(base, recorded)
+    finally:
+        overlay.close()
+    return result, frame
+
+
 def text_for_letters(learned: Sequence[str], text: str = HELLO_WORLD) -> str:
     """``text`` restricted to the learned letters (spaces kept, repeated spaces merged): all
     of "hello world" when every letter was learned, e.g. "he" after learning h and e."""
@@ -598,7 +650,7 @@ def render_run_videos(run_dir: str | os.PathLike[str], task: int | str | None = 
         rerun_path: also log the rendered rollouts to this ``.rrd`` file.
         all_tasks_video: with several tasks, also write one video of all of them in order.
         hello_world: for HelloWorld runs with all tasks selected, also write the text
-            ("hello world", or its learned letters) with ``clfd/HelloWorld-v2``.
+            ("hello world", or its learned letters) with ``clfd/HelloWorld-v3``.
 
     Returns:
         The written files: ``{run}_task{j}_{name}_demo{d}.mp4`` per task, then
@@ -677,7 +729,7 @@ def render_text_video(run_dir: str | os.PathLike[str], demo: int = 0,
                       out_dir: str | os.PathLike[str] = "videos", *,
                       style: VideoStyle | None = None) -> Path | None:
     """Renders only the HelloWorld text ("hello world", or the letters learned so far) written
-    with ``clfd/HelloWorld-v2`` from a HelloWorld run's predictions after its last task.
+    with ``clfd/HelloWorld-v3`` from a HelloWorld run's predictions after its last task.
 
     Returns:
         The mp4's path, or None when the run learned none of the text's letters.
@@ -699,13 +751,13 @@ def _render_text(saved: Any, stem: str, out_dir: Path, names: Sequence[str],
                  preds: dict[int, np.ndarray],
                  demos: dict[int, np.ndarray], demo: int, style: VideoStyle,
                  logger: Any) -> Path | None:
-    """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v2``)."""
+    """Writes the HelloWorld text from the learned letters (``clfd/HelloWorld-v3``)."""
     from clfd_bench.execution.env_pool import get_env
 
     text = text_for_letters(names)
     if not text:
         return None
-    env = get_env("clfd/HelloWorld-v2", text=text)
+    env = get_env("clfd/HelloWorld-v3", text=text)
     base = env.unwrapped
     if not 0 <= demo < base.num_demos:
         return None
