@@ -253,12 +253,7 @@ VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
         ("the arc 2 cm higher", "succeed", bumped(0.02)),
         ("the arc 5 cm higher", "succeed", bumped(0.05)),
         ("laid down at 80 % of the way (short of the far edge)", "fail", shortened(0.8)),
-        # a lower arc that still folds the mat is a valid alternative (team decision
-        # 2026-12-05: judge the fold, not the path); one that drives the fingers into the mat
-        # or the table fails by collision (demo 1's path dips at most 1.6 cm below its end
-        # height, the others' 3-10 cm)
-        ("the arc 10 cm lower (the fingers driven into the mat where it dips below the end)",
-         "either", bumped(-0.10)),
+        ("the arc 10 cm lower (the edge dragged over the mat)", "fail", bumped(-0.10)),
         ("stopped at 90 %", "either", stop_at(0.9)),
         ("stopped at 75 %", "either", stop_at(0.75)),
     ],
