@@ -893,8 +893,8 @@ class MatScene(Scene):
     margin). The mat is judged relative to itself, not by where on the table it ends: the demos
     themselves drag it (lifting the edge 8 cm while moving it 1 cm pulls the mat towards it) by
     8-14 cm in the replays (`max_root_shift`), and how far depends on the path (the strip chain
-    exaggerates that: a `flexcomp` cloth on the same paths slides 1-3 cm, DESIGN.md). A path
-    that folds the mat so is a valid alternative to demo j's."""
+    exaggerates that: a `flexcomp` cloth on the same paths slides 1-3 cm, docs/execution.md). A
+    path that folds the mat so is a valid alternative to demo j's."""
 
     object_bodies = ("mat0", "mat_pinch")
 
