@@ -70,3 +70,27 @@ def test_stop_early_of_a_demo_at_rest_by_half_time_is_no_wrong_trajectory():
                 at_rest.append((env_id, d))
         env.close()
     assert at_rest == [("clfd/MatFolding-v2", 0)]
+
+
+def test_valid_alternatives_of_outcome_judged_tasks_are_no_wrong_trajectories():
+    """Team decisions (2026-12-05): a MatFolding shortcut that folds the mat is n/a (one whose
+    edge slipped out still counts), every Scoop drift is n/a (nothing marks where a scoop
+    ends); nothing else is."""
+    from types import SimpleNamespace
+
+    from clfd_bench.execution.replay import VALID_ALTERNATIVES, is_valid_alternative
+
+    def info(**passed):
+        return {"checks": [{"name": k, "passed": v} for k, v in passed.items()]}
+
+    mat, scoop = SimpleNamespace(task_name="matfolding"), SimpleNamespace(task_name="scoop")
+    folded = info(held_until_opened=True, far_half_height=True, turned_strips=True)
+    slipped = info(held_until_opened=False, far_half_height=True, turned_strips=False)
+    assert is_valid_alternative(mat, "shortcut", folded)
+    assert not is_valid_alternative(mat, "shortcut", slipped)
+    assert not is_valid_alternative(mat, "shortcut", {})  # no checks reported: counted
+    assert not is_valid_alternative(mat, "drift", folded)
+    assert is_valid_alternative(scoop, "drift", {})
+    assert not is_valid_alternative(scoop, "shortcut", {})
+    assert not is_valid_alternative(SimpleNamespace(task_name="pouring"), "drift", {})
+    assert all(len(reason) > 80 for _, reason in VALID_ALTERNATIVES.values())  # written

@@ -190,29 +190,30 @@ def test_a_box_carried_around_the_obstacle_without_turning_it_fails(envs):
     assert _checks(r.info)["obstacle_untouched"]["passed"]
 
 
-def test_a_mat_folded_while_dragged_5_cm_off_is_not_where_the_demo_leaves_it(envs):
-    """The drifting hand drags the whole mat along: on the mat the edge lands where demo j's
-    does, but on the table it is let go 5 cm from where demo j lets it go."""
+def test_a_mat_folded_while_dragged_5_cm_off_is_let_go_off_demo_js_point(envs):
+    """The drifting hand drags the whole mat along: folded, but the edge let go 5 cm from
+    where demo j lets it go in the room, the one check that fails."""
     env = envs["matfolding"]
     c = env.unwrapped.spec_doc["success"]
     r = _run(env, "drift", 0)
-    assert not r.success and r.info["release_reason"] == "opened"
-    assert r.info["release_fold_offset"] <= c["fold_radius"]  # the fold itself is right
+    assert not r.success and r.info["release_reason"] == "opened" and r.info["mat_folded"]
+    assert [k["name"] for k in r.info["checks"] if not k["passed"]] == ["release_offset"]
     assert r.info["release_offset"] > 0.04 > c["place_radius"]
 
 
-def test_a_mat_rolled_over_in_a_straight_line_is_not_left_as_the_demo_leaves_it(envs):
+def test_a_mat_folded_by_a_straight_pull_is_a_valid_alternative(envs):
     """The straight line carries the edge 8 cm above the mat and rolls the near half over:
-    folded edge on edge, but the mat lies unturned where demo 4 leaves it turned 15 deg."""
+    every strip turned over, let go where demo 4 lets go. It folds the mat (it leaves it
+    unturned where demo 4 leaves it turned 15 deg, which is not judged), so replay counts
+    this shortcut n/a, not as a wrong trajectory that succeeded."""
+    from clfd_bench.execution.replay import is_valid_alternative
+
     env = envs["matfolding"]
-    c = env.unwrapped.spec_doc["success"]
     r = _run(env, "shortcut", 4)
-    assert not r.success and r.info["release_reason"] == "opened"
-    assert r.info["release_fold_offset"] <= c["fold_radius"]
-    assert r.info["release_offset"] <= c["place_radius"]
     strips = len(env.unwrapped.scene.strips) - 1
-    assert r.info["mat_folded"] and r.info["turned_strips"] == strips  # every one turned over
-    assert abs(r.info["mat_heading_error_deg"]) > c["max_heading_error_deg"] + 5.0
+    assert r.success and r.info["mat_folded"] and r.info["turned_strips"] == strips, r.info
+    assert is_valid_alternative(env.unwrapped, "shortcut", r.info)
+    assert not is_valid_alternative(env.unwrapped, "stop-early", r.info)
 
 
 def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
@@ -237,7 +238,8 @@ def test_a_scoop_carried_over_the_beans_takes_none(envs):
     env = envs["scoop"]
     r = rollout(env, _bumped(env, 2, 0.12), demo=2)
     assert not r.success and r.info["beans_scooped"] == 0 and r.info["beans_in_scoop"] == 0
-    assert r.info["end_offset"] < env.unwrapped.spec_doc["success"]["end_radius"]
+    # it ends where demo 2 ends, level and out of the bin: only the scoopful fails
+    assert [k["name"] for k in r.info["checks"] if not k["passed"]] == ["beans_in_scoop"]
 
 
 def test_a_scoop_pushed_down_to_the_bins_floor_touches_it(envs):
@@ -267,7 +269,9 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
               ("clfd/PanToStove-v2", "pull back 12 cm, rise, carry above the stove, descend", 1),
               ("clfd/PanToStove-v2", "turned half as far", 0),
               ("clfd/ObstacleRotate-v2", "carried unturned, turned and back over the shelf", 0),
-              ("clfd/ObstacleRotate-v2", "turned as the demo, never back", 0)]
+              ("clfd/ObstacleRotate-v2", "turned as the demo, never back", 0),
+              ("clfd/MatFolding-v2", "the arc 5 cm higher", 1),
+              ("clfd/MatFolding-v2", "laid down at 80 % of the way (short of the far edge)", 0)]
     for env_id, name, expected in checks:
         (row,) = run_variants(env_id, [name], demos=[4])
         assert row.succeeded == expected, row

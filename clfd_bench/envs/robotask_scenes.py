@@ -40,19 +40,19 @@ end state alone:
   (`max_rack_shift`, `max_rack_tilt_deg`) and a stove: at the end the pan lies flat on the
   stove (its bottom down, within `max_tilt_deg` of level).
 - matfolding (held: the middle of a mat's near edge, welded, turning between the pads on a ball
-  joint as far as the demos turn it; RoboTasks9): held until the gripper opens; at that moment
-  the near edge is within `fold_radius` of where demo j lets it go in the far half's frame (where
-  on the mat the fold puts it) and within `place_radius` of where demo j lets it go in the world
-  (where on the table); at the end the far half lies flat on the table with at least
-  `min_turned_strips` strips of the near half turned over onto it in one layer, and its heading
-  on the table is within `max_heading_error_deg` of where demo j leaves it (the demos drag and
-  turn the mat as they fold it).
+  joint as far as the demos turn it; RoboTasks9): the mat is judged relative to itself, as an
+  observer sees it (a real mat lifted by one edge slides towards the hand too, so the drag is
+  no fault): held until the gripper opens, at that moment the near edge within `place_radius`
+  of where demo j lets it go in the room (that point does not depend on the drag); at the end
+  the far half lies flat on the table with at least `min_turned_strips` strips of the near half
+  turned over onto it in one layer, and the far half was never dragged further than
+  `max_drag` from where it lay (`mat_checks`).
 - scoop (held: a scoop, by its handle, welded, never let go; RoboTasks9): the scoop never
   slips, and neither it nor the robot ever touches the bin (at any step); at the end (1 s after
   the trajectory) the bowl is out of the bin (its lowest point above the rim), its opening
-  within `max_tilt_deg` of facing up, at least `min_beans` beans in it, and the scoop's grasp
-  point within `end_radius` of where demo j ends it; at most `max_spilled` beans ever landed
-  outside the bin.
+  within `max_tilt_deg` of facing up, at least `min_beans` beans in it; at most `max_spilled`
+  beans ever landed outside the bin (`scoop_checks`). Where the scoop ends is not judged:
+  nothing in the scene marks demo j's end.
   The bin's contents are grain sites that become beans as the bowl takes them in over its lip
   (`ScoopScene`).
 
@@ -891,22 +891,56 @@ class ObstacleScene(_PlaceScene):
         return all(ch.passed for ch in checks), info
 
 
+#: The checks that say the mat is folded in half (`mat_checks`); a path that passes them folds
+#: the mat, whatever else it does (`clfd_bench.execution.replay.VALID_ALTERNATIVES`).
+MAT_FOLD_CHECKS = ("far_half_height", "turned_strips")
+
+
+def mat_checks(release_reason: str | None, release_offset: float | None, far_half_height: float,
+               turned_strips: int, drag: float, cfg: dict[str, Any]) -> list[Check]:
+    """MatFolding's success checks, in the order they are judged (success: every one passes).
+
+    Args:
+        release_reason: how the edge left the fingers: "opened" (the gripper let it go),
+            "slipped", or None (still held).
+        release_offset: distance (m) from the near edge's middle, when the gripper opened, to
+            where demo j lets it go in the room; None when it was never let go.
+        far_half_height: the far half's middle plane above the table top (m), now.
+        turned_strips: strips of the near half lying turned over on the far half, now.
+        drag: the far half's largest horizontal shift from where it lay at the start (m).
+        cfg: the spec's `[success]`: `place_radius`, `max_layer_height`, `min_turned_strips`,
+            `max_drag`.
+
+    Returns:
+        `held_until_opened` (flag), `release_offset` <= `place_radius` (m), `far_half_height`
+        <= `max_layer_height` (m), `turned_strips` >= `min_turned_strips`, `drag` <=
+        `max_drag` (m).
+    """
+    return [
+        Check.flag("held_until_opened", release_reason == "opened",
+                   f"released: {release_reason}"),
+        Check("release_offset", release_offset, float(cfg["place_radius"]), "<=", "m",
+              "the edge let go from where demo j lets it go, in the room"),
+        Check("far_half_height", float(far_half_height), float(cfg["max_layer_height"]), "<=",
+              "m", "the far half flat on the table"),
+        Check("turned_strips", float(turned_strips), float(cfg["min_turned_strips"]), ">=", "",
+              "strips turned over onto the far half"),
+        Check("drag", float(drag), float(cfg["max_drag"]), "<=", "m",
+              "the far half's largest shift on the table"),
+    ]
+
+
 class MatScene(Scene):
     """A mat (a rigid far half `mat0` and a chain of strips hinged about x, `tasks/matfolding.xml`)
     lying on the table, pinched at its near edge (`mat_pinch`, welded to the hand; the edge
     turns between the pads on a ball joint, as far as the grasp's slip bound allows) and folded
-    in half. Success: see the module docstring (held until the gripper opens; at that moment
-    the near edge where demo j lets it go, on the mat and on the table; at the end the mat lies
-    as demo j leaves it: folded, and turned as far on the table). The demos themselves drag the
-    mat (lifting the edge 8 cm while moving it 1 cm pulls the mat towards it), by 8-14 cm and
-    9-23 deg in the replays (`max_root_shift`, `mat_heading_deg` report it), so where the mat
-    ends is judged against where demo j leaves it, not against where it started.
-
-    Known limitation: the criterion is stricter than an observer. How far the mat is dragged
-    depends on the path, so a fold made with the demo's arc raised 2 cm mid-way fails on 4 of
-    the 9 demos and raised 5 cm on all 9 (`python eval/own_variants.py clfd/MatFolding-v2`;
-    docs/execution.md). Execution success on this task understates a method whose path is not
-    demo j's within about 1 cm."""
+    in half. Success: `mat_checks` (held until the gripper opens, let go where demo j lets go in
+    the room; at the end folded in half; never dragged further than the demos drag it plus a
+    margin). The mat is judged relative to itself, not by where on the table it ends: the demos
+    themselves drag it (lifting the edge 8 cm while moving it 1 cm pulls the mat towards it) by
+    8-14 cm in the replays (`max_root_shift`), and how far depends on the path (the strip chain
+    exaggerates that: a `flexcomp` cloth on the same paths slides 1-3 cm, docs/execution.md). A
+    path that folds the mat so is a valid alternative to demo j's."""
 
     object_bodies = ("mat0", "mat_pinch")
 
@@ -1002,11 +1036,10 @@ class MatScene(Scene):
         return self._demo_row(ref.reshape(len(ref), -1))
 
     def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
-        self.record = {"max_root_shift": 0.0, "release_vector": None, "release_edge": None}
+        self.record = {"max_root_shift": 0.0, "release_edge": None}
 
     def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
         mujoco.mj_kinematics(self.model, data)
-        self.record["release_vector"] = self.fold_vector(data).copy()
         self.record["release_edge"] = self.near_edge(data).copy()
 
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
@@ -1016,29 +1049,22 @@ class MatScene(Scene):
             self.record["max_root_shift"] = shift
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
-        c, rec = self.success_cfg, self.record
-        # let go where demo j lets go: on the mat (the fold) and on the table
-        fold_off = edge_off = None
-        if rec["release_vector"] is not None:
-            fold_off = float(np.linalg.norm(rec["release_vector"] - self._ref("release_vector")))
+        rec = self.record
+        edge_off = None
+        if rec["release_edge"] is not None:
             edge_off = float(np.linalg.norm(rec["release_edge"] - self._ref("release_edge")))
-        placed = bool(grasp.release_reason == "opened" and fold_off is not None
-                      and fold_off <= float(c["fold_radius"])
-                      and edge_off <= float(c["place_radius"]))
-        # now: folded (the far half flat on the table, the near half turned over onto it) and
-        # turned on the table as demo j leaves it
-        heading = self.heading_deg(data)
-        turn = float((heading - float(self._ref("end_heading_deg")[0]) + 180.0) % 360.0 - 180.0)
         turned = self.turned_strips(data)
-        flat = bool(data.xpos[self.root, 2] - self.table_z <= float(c["max_layer_height"]))
-        folded = bool(flat and turned >= int(c["min_turned_strips"]))
-        where = abs(turn) <= float(c["max_heading_error_deg"])
-        ok = bool(placed and folded and where and not grasp.held(data))
-        return ok, {"release_fold_offset": fold_off, "release_offset": edge_off,
-                    "fold_end_y": float(self.fold_vector(data)[1]), "turned_strips": turned,
-                    "mat_folded": folded, "mat_heading_deg": heading,
-                    "mat_heading_error_deg": turn,
-                    "max_root_shift": float(rec["max_root_shift"])}
+        height = float(data.xpos[self.root, 2] - self.table_z)
+        checks = mat_checks(grasp.release_reason, edge_off, height, turned,
+                            float(rec["max_root_shift"]), self.success_cfg)
+        passed = {c.name: c.passed for c in checks}
+        ok = all(passed.values()) and not grasp.held(data)
+        return ok, {"release_offset": edge_off, "fold_end_y": float(self.fold_vector(data)[1]),
+                    "turned_strips": turned,
+                    "mat_folded": all(passed[n] for n in MAT_FOLD_CHECKS),
+                    "mat_heading_deg": self.heading_deg(data),
+                    "max_root_shift": float(rec["max_root_shift"]),
+                    "checks": checks_json(checks)}
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()
@@ -1238,11 +1264,45 @@ class PouringScene(Scene):
             "checks": checks_json(checks)}
 
 
+def scoop_checks(held: bool, bin_touched_by: str | None, bowl_above_rim: float,
+                 bowl_tilt_deg: float, beans_in_scoop: int, beans_spilled: int,
+                 cfg: dict[str, Any]) -> list[Check]:
+    """Scoop's success checks, in the order they are judged (success: every one passes).
+
+    Args:
+        held: the scoop is still held (it never slipped out of the fingers).
+        bin_touched_by: the first body other than a bean that touched the bin (the scoop, a
+            part of the robot), or None.
+        bowl_above_rim: the bowl's lowest point above the bin's rim (m), now.
+        bowl_tilt_deg: the bowl's opening's angle from straight up (deg), now.
+        beans_in_scoop: beans in the bowl now; beans_spilled: beans that ever landed outside
+            the bin.
+        cfg: the spec's `[success]`: `max_tilt_deg`, `min_beans`, `max_spilled`.
+
+    Returns:
+        `held` (flag), `bin_untouched` (flag), `bowl_above_rim` >= 0 (m), `bowl_tilt` <=
+        `max_tilt_deg` (deg), `beans_in_scoop` >= `min_beans`, `beans_spilled` <=
+        `max_spilled`.
+    """
+    return [
+        Check.flag("held", held, "the scoop never slipped"),
+        Check.flag("bin_untouched", bin_touched_by is None,
+                   f"touched by {bin_touched_by}" if bin_touched_by else "the bin untouched"),
+        Check("bowl_above_rim", float(bowl_above_rim), 0.0, ">=", "m",
+              "the bowl's lowest point above the bin's rim"),
+        Check("bowl_tilt", float(bowl_tilt_deg), float(cfg["max_tilt_deg"]), "<=", "deg",
+              "the bowl's opening from straight up"),
+        Check("beans_in_scoop", float(beans_in_scoop), float(cfg["min_beans"]), ">=", ""),
+        Check("beans_spilled", float(beans_spilled), float(cfg["max_spilled"]), "<=", ""),
+    ]
+
+
 class ScoopScene(Scene):
-    """A scoop held by its handle, a bin of beans on a stand. Success: see the module docstring
-    (the scoop never slips and never touches the bin; it ends out of the bin, level, near where
-    demo j ends it, holding at least `min_beans` beans; at most `max_spilled` ever landed
-    outside the bin).
+    """A scoop held by its handle, a bin of beans on a stand. Success: `scoop_checks` (the scoop
+    never slips and never touches the bin; it ends out of the bin, level, holding at least
+    `min_beans` beans; at most `max_spilled` ever landed outside the bin). Where it ends is not
+    judged: nothing in the scene marks demo j's end (no container), and a scoopful held level
+    out of the bin is the task done wherever the hand is.
 
     The beans: the bin's contents up to `[scene] surface_z` are not simulated body by body (a
     bed deep enough for the demos' 8 cm spread of dip depth would take hundreds of spheres).
@@ -1343,14 +1403,9 @@ class ScoopScene(Scene):
         self._prev: tuple[np.ndarray, np.ndarray] | None = None
         corners = np.stack(np.meshgrid(*self._outer.T, indexing="ij"), -1).reshape(-1, 3)
         self._outer_corners = corners
-        c = self.success_cfg
-        self._ends = np.asarray(s.get("end_grip", [[0.0, 0.0, 0.0]]), dtype=float).reshape(-1, 3)
         self._cavity_mid = self._cavity.mean(0)
         #: the cavity and a bean radius past its opening: a heaped scoopful counts
         self._heaped = self._cavity - [[0.0, 0.0, self.bean_radius], [0.0, 0.0, 0.0]]
-        self._min_beans, self._max_spilled = int(c["min_beans"]), int(c["max_spilled"])
-        self._max_tilt = float(c.get("max_tilt_deg", 180.0))
-        self._end_radius = float(c.get("end_radius", np.inf))
         self._is_bin_geom = np.zeros(model.ngeom, dtype=bool)
         self._is_bin_geom[self.bin_geoms] = True
         self._is_bean_geom = np.zeros(model.ngeom, dtype=bool)
@@ -1516,26 +1571,21 @@ class ScoopScene(Scene):
 
     def success(self, data: mujoco.MjData, grasp: Grasp) -> tuple[bool, dict[str, Any]]:
         rec = self.record
-        held = grasp.held(data)
         beans = self.beans_in_bowl(data)
         grip = data.xpos[self.scoop]  # the scoop's origin: the grasp point on its handle
-        end = self._demo_row(self._ends)
-        offset = math.dist(grip, end)
         rot = data.xmat[self.scoop].reshape(3, 3)
-        centre = self.bowl_centre(data)
         touched = rec["bin_touched_by"]
         # the opening faces -z of the scoop: its tilt from straight up
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -float(rot[2, 2])))))
         lowest = float(grip[2] + (self._outer_corners @ rot[2]).min())
-        out = lowest > self._rim
-        ok = (held and touched is None and beans >= self._min_beans
-              and rec["spilled"] <= self._max_spilled and out and tilt <= self._max_tilt
-              and offset <= self._end_radius)
-        return bool(ok), {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
-                          "beans_scooped": int(rec["scooped"]), "end_offset": offset,
-                          "grip_point": grip.tolist(),
-                          "bowl_centre": centre.tolist(), "bowl_tilt_deg": tilt,
-                          "bowl_out_of_bin": bool(out), "bin_touched_by": touched}
+        checks = scoop_checks(grasp.held(data), touched, lowest - self._rim, tilt, beans,
+                              int(rec["spilled"]), self.success_cfg)
+        ok = all(c.passed for c in checks)
+        return ok, {"beans_in_scoop": beans, "beans_spilled": int(rec["spilled"]),
+                    "beans_scooped": int(rec["scooped"]), "grip_point": grip.tolist(),
+                    "bowl_centre": self.bowl_centre(data).tolist(), "bowl_tilt_deg": tilt,
+                    "bowl_out_of_bin": checks[2].passed, "bin_touched_by": touched,
+                    "checks": checks_json(checks)}
 
     def scene_state(self) -> dict[str, Any]:
         state = super().scene_state()

@@ -281,18 +281,21 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   and, when let go, was back within {end_turn:.1f} deg of its start heading; it was let go at
   most {box_drop_cm:.1f} cm above the shelf and within {box_radius_cm:.1f} cm of where demo j
   lets it go; now it lies on the shelf.
-- matfolding: the mat's edge was held until the gripper opened; at that moment it was within
-  {fold_radius_cm:.1f} cm of where demo j lets it go on the mat (in the far half's frame) and
-  within {mat_place_radius_cm:.1f} cm of where demo j lets it go in the room; now the far half lies
-  flat on the table with at least {min_turned} of the {n_strips} strips of the near half turned
-  over onto it in one layer, and the mat is turned on the table as demo j leaves it (its
-  heading within {heading_deg:g} deg of demo j's).
+- matfolding: judged relative to the mat itself (a mat lifted by one edge slides towards the
+  hand: the drag is no fault). The mat's edge was held until the gripper opened, at that
+  moment within {mat_place_radius_cm:.1f} cm of where demo j lets it go in the room; now the
+  far half lies flat on the table with at least {min_turned} of the {n_strips} strips of the
+  near half turned over onto it in one layer (folded in half); the far half was never dragged
+  more than {mat_drag_cm:.1f} cm (the demos drag it
+  {mat_demo_drag_min_cm:.1f}-{mat_demo_drag_max_cm:.1f} cm).
 - scoop: the scoop never slipped and neither it nor the robot ever touched the bin; at the end
   (1 s after the trajectory, held still) the bowl is out of the bin, its opening within
-  {scoop_tilt:.0f} deg of facing up, at least {scoop_min_beans} beans in it, and the scoop's
-  grasp point within {scoop_end_cm:.1f} cm of where demo j ends it (the end has no physical
-  target: nearer than a 5 cm drift less the 1.5 cm margin); at most {scoop_max_spilled} ever
-  landed outside the bin.
+  {scoop_tilt:.0f} deg of facing up, at least {scoop_min_beans} beans in it; at most
+  {scoop_max_spilled} ever landed outside the bin. Where the scoop ends is not judged (nothing
+  in the scene marks demo j's end).
+
+matfolding and scoop report the checks behind the decision in `info["checks"]`
+(`clfd_bench.envs.checks`: name, measured value, bound, comparison, unit, passed).
 
 ## Episode End
 
@@ -320,16 +323,20 @@ attached), `release_reason` ("opened" / "slipped" / None), `slip_cause`, `grip_l
 `glass_foot_height`, `on_shelf`, `max_tray_shift`, `max_tray_tilt_deg`, `tray_in_place`;
 `pan_tilt_deg`, `pan_bottom_height`, `on_stove`, `max_rack_shift`, `max_rack_tilt_deg`,
 `rack_in_place`; `object_tilt_deg`, `object_height`, `on_shelf`, `obstacle_touched_by`,
-`object_max_turn_deg`, `object_release_turn_deg`; `release_fold_offset`, `release_offset`,
-`fold_end_y`, `turned_strips`, `mat_folded`, `mat_heading_deg`, `mat_heading_error_deg`,
-`max_root_shift`; `beans_in_scoop`, `beans_spilled`, `beans_scooped`, `end_offset`,
-`grip_point`, `bowl_centre`, `bowl_tilt_deg`, `bowl_out_of_bin`, `bin_touched_by`), and
+`object_max_turn_deg`, `object_release_turn_deg`; `release_offset`, `fold_end_y`,
+`turned_strips`, `mat_folded`, `mat_heading_deg`, `max_root_shift`; `beans_in_scoop`,
+`beans_spilled`, `beans_scooped`, `grip_point`, `bowl_centre`, `bowl_tilt_deg`,
+`bowl_out_of_bin`, `bin_touched_by`), and
 `checks`: one `clfd_bench.envs.checks.Check.to_json` dict per success criterion (its measured
-value, bound, unit and whether it passed; success is all of them passing; reported by
-BoxOpening, BottleShelving, PlateStacking, Pouring, WineGlass, PanToStove, ObstacleRotate).
+value, bound, unit and whether it passed; success is all of them passing; reported by every
+scene).
 
 ## Version History
 
+- 2026-12-05 (issue 38, team decisions; the ids stay v2): `clfd/MatFolding-v2` judges the mat
+  relative to itself (folded, let go where demo j lets go in the room, not dragged further than
+  the demos drag it plus their spread), no longer where on the mat the edge lands nor how the
+  mat is turned on the table; `clfd/Scoop-v2` no longer judges where the scoop ends (3.5 cm).
 - `clfd/WineGlass-v2`, `clfd/PanToStove-v2`, `clfd/ObstacleRotate-v2`, `clfd/MatFolding-v2`
   and `clfd/Scoop-v2` are new (2026-12-04): they start at the family's version.
 - v2: physics steps of 2 ms (8 per control step) instead of v1's 4 ms, at which the arm's
@@ -407,10 +414,11 @@ def _doc_numbers() -> dict[str, Any]:
         "box_radius_cm": 100 * obstacle["success"]["place_radius"],
         "mat_mass": 1.0, "n_strips": 10, "strip_cm": 3,
         "pinch_turn_deg": float(np.degrees(mat["grasp"]["slip_joints"][0][2])),
-        "fold_radius_cm": 100 * mat["success"]["fold_radius"],
         "mat_place_radius_cm": 100 * mat["success"]["place_radius"],
         "min_turned": mat["success"]["min_turned_strips"],
-        "heading_deg": mat["success"]["max_heading_error_deg"],
+        "mat_drag_cm": 100 * mat["success"]["max_drag"],
+        "mat_demo_drag_min_cm": 100 * min(mat["derived"]["root_shift_max"]),
+        "mat_demo_drag_max_cm": 100 * max(mat["derived"]["root_shift_max"]),
         "scoop_mass_g": 55, "scoop_dip_cm": 100 * (scoop["scene"]["surface_z"]
                                                    - max(scoop["derived"]["lip_lowest_z"])),
         "grain_mm": 1000 * scoop["scene"]["grain_spacing"],
@@ -418,7 +426,6 @@ def _doc_numbers() -> dict[str, Any]:
         "scoop_last_bean": scoop["scene"]["n_beans"] - 1,
         "scoop_bean_cm": 200 * scoop["scene"]["bean_radius"],
         "scoop_bean_g": 1000 * scoop["scene"]["bean_mass"],
-        "scoop_end_cm": 100 * scoop["success"]["end_radius"],
         "scoop_min_beans": scoop["success"]["min_beans"],
         "scoop_max_spilled": scoop["success"]["max_spilled"],
         "scoop_tilt": scoop["success"]["max_tilt_deg"],

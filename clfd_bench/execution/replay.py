@@ -17,6 +17,13 @@ has already come to rest by half time is the demo itself, not a wrong trajectory
 demo's second half moves the hand less than `REST_TOLERANCE` (5 mm, the servo lag and IK error
 part of the position margins, and 2 deg) from where it is at half time, the variant is n/a too
 (MatFolding demo 0 folds in 8.5 of its 16.7 s and rests for the rest: 2.3 mm, 0.2 deg).
+
+Where a task is judged by the outcome an observer sees rather than by the path (team decisions
+of 2026-12-05), a family can be a valid alternative of that task: `VALID_ALTERNATIVES` names
+each such (task, family), the outcome that makes a variant n/a and the reason. A MatFolding
+`shortcut` that folds the mat is another way of folding it, as a mirrored Pouring is another
+way of pouring; a Scoop `drift` is never a wrong trajectory, because nothing in that scene
+marks where demo j ends. `is_valid_alternative` decides it from the rollout's final info.
 """
 
 from __future__ import annotations
@@ -24,21 +31,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from clfd_bench.envs.base import PandaEnv, load_task
+from clfd_bench.envs.robotask_scenes import MAT_FOLD_CHECKS
 from clfd_bench.execution.perturb import FAMILIES, PerturbContext, family_names, perturb
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
 from clfd_bench.metrics.trajectory import hausdorff
 
-__all__ = ["MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES", "ReplayRecord",
-           "confusion_table", "families_for", "format_confusion", "is_distinct", "replay",
-           "replay_trajectory"]
+__all__ = ["MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES", "VALID_ALTERNATIVES",
+           "ReplayRecord", "confusion_table", "families_for", "format_confusion", "is_distinct",
+           "is_valid_alternative", "replay", "replay_trajectory"]
 
 #: A must-fail family may succeed on at most this fraction of an env's demos.
 MAX_FALSE_SUCCESS = 0.05
@@ -47,6 +55,34 @@ SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
 #: A demo whose second half stays within (m, deg) of its pose at half time is at rest by then:
 #: its `stop-early` variant is not a wrong trajectory (see the module docstring).
 REST_TOLERANCE = (0.005, 2.0)
+
+
+def _checks_passed(info: Mapping[str, Any], names: Sequence[str]) -> bool:
+    """Whether every check named in `names` is in `info["checks"]` and passed."""
+    passed = {c["name"]: bool(c["passed"]) for c in info.get("checks") or ()}
+    return all(passed.get(n, False) for n in names)
+
+
+#: (task, family) -> (outcome, reason): a variant of `family` on `task` is no wrong trajectory
+#: (n/a) when `outcome(final info)` holds. Team decisions of 2026-12-05: judge the outcome an
+#: observer sees, not the path, where that outcome is the task.
+VALID_ALTERNATIVES: dict[tuple[str, str], tuple[Callable[[Mapping[str, Any]], bool], str]] = {
+    ("matfolding", "shortcut"): (
+        lambda info: _checks_passed(info, MAT_FOLD_CHECKS),
+        "a straight pull from demo j's start to its end pose that folds the mat in half (the "
+        "far half flat, the strips turned over onto it) is another way of folding it, as a "
+        "mirrored Pouring is another way of pouring: a mat lifted by one edge slides towards "
+        "the hand whatever the path, so the criterion judges the mat relative to itself, and "
+        "a folded mat is the outcome an observer signs. A shortcut that does not fold it (the "
+        "edge slips out of the fingers) is still counted, and fails."),
+    ("scoop", "drift"): (
+        lambda info: True,
+        "nothing in the scene marks where demo j ends (no container: a scoopful held level out "
+        "of the bin is the task done wherever the hand holds it), so no check judges the end "
+        "point; a path offset by up to 5 cm that still dips into the bin and lifts a level "
+        "scoopful out is the task done, and one that touches the bin or loses its beans fails "
+        "those checks, not for the offset. The family tests nothing this task asks."),
+}
 
 
 @dataclasses.dataclass
@@ -168,6 +204,13 @@ def is_distinct(env: PandaEnv, demo: int, family: str,
     return hausdorff(_positions_m(env, trajectory), _positions_m(env, original)) > spread
 
 
+def is_valid_alternative(env: PandaEnv, family: str, info: Mapping[str, Any]) -> bool:
+    """Whether a rollout of a `family` variant on `env` is a valid alternative of its task, not
+    a wrong trajectory (`VALID_ALTERNATIVES`), judged from the rollout's final `info`."""
+    rule = VALID_ALTERNATIVES.get((str(getattr(env, "task_name", "")), family))
+    return rule is not None and bool(rule[0](info))
+
+
 def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo",
            settle_s: float = DEFAULT_SETTLE_S, env: gym.Env | None = None,
            **env_kwargs: Any) -> list[ReplayRecord]:
@@ -195,6 +238,8 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
             t0 = time.perf_counter()
             result = rollout(env, traj, demo=j, settle_s=settle_s)
             wall = time.perf_counter() - t0
+            if applicable and is_valid_alternative(base, family, result.info):
+                applicable = False
             err = result.tracking_error_pos
             records.append(ReplayRecord(
                 env_id=env_id, demo=j, family=family, success=result.success,
@@ -213,7 +258,8 @@ def confusion_table(records: Iterable[ReplayRecord | dict[str, Any]]
                     ) -> dict[str, dict[str, dict[str, Any]]]:
     """{env: {family: {"n", "successes", "expect", "ok", "failure_kinds"}}} from replay
     records (objects or their `to_json()` dicts), plus "not_applicable": variants of a shape
-    family that are no wrong trajectory (`is_distinct`), left out of "n". `ok` is False where a
+    family that are no wrong trajectory (`is_distinct`, `is_valid_alternative`), left out of
+    "n". `ok` is False where a
     must-succeed family failed on any demo or a must-fail family succeeded on more than
     `MAX_FALSE_SUCCESS` of its applicable demos."""
     table: dict[str, dict[str, dict[str, Any]]] = {}
@@ -260,6 +306,9 @@ def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
                  "cell that does not. n/a: variants of a shape family (shortcut, rush-wait, "
                  "mirror) that stay within the task's own inter-demo spread (largest Hausdorff "
                  "distance between two demos) of the demo, and stop-early variants of a demo "
-                 "already at rest at half time (its second half moves < 5 mm, < 2 deg): no "
-                 "wrong trajectory, not counted.")
+                 "already at rest at half time (its second half moves < 5 mm, < 2 deg), and "
+                 "a task's valid alternatives (a MatFolding shortcut that folds the mat, any "
+                 "Scoop drift: nothing marks where a scoop ends; "
+                 "clfd_bench.execution.replay.VALID_ALTERNATIVES): no wrong trajectory, not "
+                 "counted.")
     return "\n".join(lines)
