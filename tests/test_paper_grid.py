@@ -52,7 +52,7 @@ def test_narrowing_flags():
     ({"datasets": ["robotasks9"]}, "unknown dataset robotasks9; valid: lasa, helloworld"),
     ({"orders": [3]}, "unknown order for lasa 3; valid: 0, 1, 2"),
     ({"seeds": []}, "--seeds is empty"),
-    ({"profile": "huge"}, "unknown profile huge; valid: paper, fast, smoke"),
+    ({"profile": "huge"}, "unknown profile huge; valid: paper, full, fast, smoke"),
 ])
 def test_bad_selections_raise_with_valid_names(kwargs, message):
     with pytest.raises(GridError) as info:

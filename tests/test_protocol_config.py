@@ -12,7 +12,7 @@ from clfd_bench.methods import list_methods
 
 
 @pytest.mark.parametrize("method", list_methods())
-@pytest.mark.parametrize("profile", ["paper", "fast", "smoke"])
+@pytest.mark.parametrize("profile", ["paper", "full", "fast", "smoke"])
 @pytest.mark.parametrize("dataset", ["lasa", "helloworld", "robotasks", "robotasks9"])
 def test_every_profile_resolves(method, profile, dataset):
     if profile == "paper" and method in ("si", "mas") and dataset.startswith("robotasks"):

@@ -100,7 +100,7 @@ def test_bad_command_line_value(capsys, tmp_path, args, expected):
 
 @pytest.mark.parametrize("argv,expected", [
     (["train", "--method", "sg", "--dataset", "helloworld", "--profile", "../../x"],
-     ["unknown profile '../../x'", "paper, fast, smoke"]),
+     ["unknown profile '../../x'", "paper, full, fast, smoke"]),
     (["train", "--method", "nope", "--dataset", "helloworld"], ["unknown CL method 'nope'"]),
     (["train", "--method", "sg", "--dataset", "helloword"], ["unknown dataset 'helloword'"]),
     (["train", "--method", "si", "--dataset", "robotasks", "--profile", "paper"],
@@ -237,7 +237,7 @@ def test_dataset_error_is_one_exception_type(data_copy):
 
 # -------------------------------------------------------------------------- leaderboard
 @pytest.mark.parametrize("args,expected", [
-    (["--profile", "../../x"], ["unknown profile '../../x'", "paper, fast, smoke"]),
+    (["--profile", "../../x"], ["unknown profile '../../x'", "paper, full, fast, smoke"]),
     (["--profile", "smoke", "--tasks", "99"], ["--tasks 99", "1..7"]),
     (["--profile", "smoke", "--seeds", "0,-1"], ["--seeds -1", "0.."]),
     (["--profile", "smoke", "--orders", "0,5"], ["--orders 5", "0..2"]),

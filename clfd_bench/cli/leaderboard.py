@@ -9,6 +9,7 @@ import sys
 from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
 from clfd_bench.leaderboard.entries import entry_help
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -76,7 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "name or as package.module:ClassName (docs/methods.md); "
                         f"{entry_help()} (a method with its own --node and settings, "
                         "docs/snode.md)")
-    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--orders", type=ints, default=[0], help="task orders (default 0)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)

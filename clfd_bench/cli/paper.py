@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -232,7 +233,7 @@ def _add_grid_flags(p: argparse.ArgumentParser) -> None:
                    help="comma-separated t,i (default: the paper's; RoboTasks: t only)")
     p.add_argument("--seeds", type=ints, default=None, help="comma-separated (default 0-4)")
     p.add_argument("--orders", type=ints, default=None, help="task orders (default 0,1,2)")
-    p.add_argument("--profile", default="paper", help="paper (default), fast or smoke")
+    p.add_argument("--profile", default="paper", help=profile_help("paper"))
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true",
                    help="train without executing predictions in simulation")
@@ -262,7 +263,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     help="comma-separated: lasa,helloworld,robotasks (default all)")
     sz.add_argument("--methods", type=names, default=None,
                     help="comma-separated (default: the paper's for each dataset)")
-    sz.add_argument("--profile", default="fast", help="paper, fast (default) or smoke")
+    sz.add_argument("--profile", default="fast", help=profile_help("fast"))
     sz.add_argument("--tolerance", type=float, default=0.05,
                     help="mark rows whose FS differs from the paper's by more (default 0.05)")
     sz.set_defaults(func=_safe(_sizes))

@@ -8,6 +8,7 @@ import os
 import sys
 
 from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -56,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"a planar dataset: {', '.join(PLANAR)} (default helloworld)")
     p.add_argument("--methods", type=names, default=names("sg,ft,rep,si,mas,hn,chn"),
                    help="comma-separated CL methods (default all seven)")
-    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")

@@ -7,6 +7,7 @@ import sys
 
 from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -68,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="comma-separated task orders (default 0,1,2)")
     p.add_argument("--seeds", type=ints, default=[0, 1, 2],
                    help="comma-separated seeds (default 0,1,2)")
-    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")

@@ -7,6 +7,7 @@ import sys
 
 from clfd_bench.cli.common import add_executor_arguments, finish, names, unknown_dataset
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -80,7 +81,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="configurations drawn per method (default 5)")
     p.add_argument("--seed", type=int, default=0,
                    help="seeds the draw and every training run (default 0)")
-    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--range", action="append", default=[], metavar="[METHOD.]KEY=LOW,HIGH",
                    help="replace a sampling range, e.g. beta=1e-3,1e-2 (every method that "
                    "samples beta) or hn.beta=0.01,1 (one method; also adds a key); repeatable")

@@ -14,6 +14,7 @@ from clfd_bench.cli.common import (
     unknown_dataset,
 )
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
 
@@ -61,7 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="comma-separated hypernetwork methods (default hn,chn)")
     p.add_argument("--regs", type=names, default=names("all,batched,sampled"),
                    help="comma-separated hnet_reg modes (default all,batched,sampled)")
-    p.add_argument("--profile", default="fast", help="paper, fast or smoke (default fast)")
+    p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
     p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")

@@ -22,6 +22,7 @@ import json
 import sys
 
 from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.profiles import PROFILES
 
 __all__ = ["register"]
 
@@ -44,8 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--dataset", required=True,
                    help="dataset: lasa, helloworld, robotasks, robotasks9")
     p.add_argument("--profile", default="fast",
-                   help="hyperparameter profile: paper (the paper's tables), fast, smoke "
-                        "(default: fast)")
+                   help="hyperparameter profile: " + "; ".join(
+                       f"{name} ({what})" for name, what in PROFILES.items()) + " (default fast)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--order", type=int, default=0, help="task order 0, 1 or 2 (default 0)")
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)

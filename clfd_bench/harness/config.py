@@ -1,8 +1,8 @@
 """Run configuration: frozen dataclasses loaded from ``baselines/<method>.toml``.
 
-A baselines file holds, per profile (``paper``, ``fast``, ``smoke``), a ``defaults`` table
-and one table per dataset; pose datasets (RoboTasks) have ``position`` and ``orientation``
-sub-tables for their two models. Runs of the stable NODE (``--node s``) also read
+A baselines file holds, per profile (``paper``, ``full``, ``fast``, ``smoke``), a
+``defaults`` table and one table per dataset; pose datasets (RoboTasks) have ``position`` and
+``orientation`` sub-tables for their two models. Runs of the stable NODE (``--node s``) also read
 ``baselines/snode.toml`` (its ``[profile]`` table, shared by every method) and the method's
 optional ``[profile.snode]`` table. Values resolve as
 
@@ -54,6 +54,7 @@ from clfd_bench.learning.part_config import (
     Rule,
 )
 from clfd_bench.node_variants import NODE_VARIANTS
+from clfd_bench.profiles import PROFILE_NAMES
 from clfd_bench.resources import resource_path
 
 __all__ = [
@@ -71,7 +72,8 @@ __all__ = [
     "suggest",
 ]
 
-PROFILES = ("paper", "fast", "smoke")
+PROFILES = PROFILE_NAMES
+"""The profiles a baselines file may hold (:mod:`clfd_bench.profiles`)."""
 DATASET_TABLES = ("lasa", "helloworld", "robotasks", "robotasks9")
 POSE_DATASETS = ("robotasks", "robotasks9")
 PARTS_POSE = ("position", "orientation")

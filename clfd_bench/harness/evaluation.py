@@ -219,6 +219,8 @@ def results_document(
             task), and per task: ``train_time_s``, ``num_params``, ``stored_samples``
             (``[M]`` lists, or None when not known), ``train_time_s_by_part``,
             ``num_params_by_part`` (``{part: [M]}`` or None), ``iterations_per_s_by_part``,
+            ``iterations_by_part`` (optimiser steps each task ran; fewer than the config's
+            ``iterations`` when the stop rule ended it; missing or None: not known),
             ``final_loss_by_part``; optionally ``train_cpu_s`` (``[M]``, this process's CPU
             seconds per task, None where unknown; absent for external predictions).
         complete: every task of the run is learned.
@@ -252,6 +254,7 @@ def results_document(
         "train_cpu_s": state.get("train_cpu_s"),
         "train_time_s_by_part": state["train_time_s_by_part"],
         "iterations_per_s_by_part": state["iterations_per_s_by_part"],
+        "iterations_by_part": state.get("iterations_by_part"),
         "final_loss_by_part": state["final_loss_by_part"],
         "num_params": state["num_params"],
         "num_params_by_part": state["num_params_by_part"],

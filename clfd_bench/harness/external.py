@@ -561,6 +561,7 @@ def score_predictions(
         "train_time_s": train_time,
         "train_time_s_by_part": train_time_by_part,
         "iterations_per_s_by_part": None,
+        "iterations_by_part": None,
         "final_loss_by_part": None,
         "num_params": num_params,
         "num_params_by_part": num_params_by_part,

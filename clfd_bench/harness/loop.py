@@ -11,6 +11,11 @@ One iteration::
     extra.backward()
     method.before_step(ctx)                     # may edit .grad (A-GEM projection, PackNet)
     optimizer.step(); schedule.step(); method.after_step()
+    stop rule (stop_window > 0): may lower the lr, or end the task early
+
+With ``stop_window > 0`` (:mod:`clfd_bench.learning.stop_rule`) ``iterations`` is a cap: the
+task ends once its smoothed loss stops improving; :class:`TrainStats` records the iterations
+it ran.
 
 The batch and solver specs and the loss are pure functions of :mod:`clfd_bench.learning.objective`
 (re-exported here), which methods use too.
@@ -31,6 +36,7 @@ import torch
 from clfd_bench.harness.config import PartConfig
 from clfd_bench.learning.batches import BatchSampler
 from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_loss
+from clfd_bench.learning.stop_rule import StopRule
 from clfd_bench.methods.base import Method, StepContext, TaskData
 from clfd_bench.progress import progress
 
@@ -41,6 +47,7 @@ __all__ = [
     "lr_factor",
     "solver_blew_up",
     "solver_spec",
+    "stop_rule",
     "train_task",
     "warm_up",
 ]
@@ -81,7 +88,8 @@ class TrainStats:
 
     Attributes:
         seconds: wall time of the whole task (hooks included, e.g. MAS importances).
-        iterations: optimiser steps.
+        iterations: optimiser steps (below ``cfg.iterations`` when the stop rule ended the
+            task early).
         final_loss: the task loss at the last iteration.
         loop_seconds: wall time of the iterations alone.
     """
@@ -126,6 +134,18 @@ def lr_factor(cfg: PartConfig, iteration: int) -> float:
     return factor
 
 
+def stop_rule(cfg: PartConfig) -> StopRule | None:
+    """The stop rule of ``cfg`` (None: ``stop_window = 0``, off). Its first window starts
+    when the learning-rate warm-up and the growth of a ``trajectories`` batch's horizon are
+    over."""
+    if cfg.stop_window <= 0:
+        return None
+    start = cfg.lr_warmup * cfg.iterations
+    if cfg.batch == "trajectories" and cfg.horizon_start < 1.0:
+        start = max(start, cfg.horizon_ramp * cfg.iterations)
+    return StopRule(cfg.stop_window, cfg.stop_rel, cfg.stop_decays, math.ceil(start))
+
+
 def train_task(
     method: Method,
     task: int,
@@ -152,11 +172,17 @@ def train_task(
     method.train()
     method.on_task_start(task, data)
     optimizer = _adam(method.trainable(task), cfg.lr)
-    schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda it: lr_factor(cfg, it))
+    stop = stop_rule(cfg)
+    if stop is None:
+        schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda it: lr_factor(cfg, it))
+    else:
+        schedule = torch.optim.lr_scheduler.LambdaLR(
+            optimizer, lambda it: lr_factor(cfg, it) * stop.lr_scale)
     samplers: dict[int, BatchSampler] = {}
     loss_value = float("nan")
     bar = progress(total=cfg.iterations, desc=desc or f"task {task}")
     loop_start = time.perf_counter()
+    done = cfg.iterations
     for it in range(cfg.iterations):
         k = method.pick_task(task, generator)
         sampler = samplers.get(k)
@@ -179,17 +205,21 @@ def train_task(
             extra.backward()
         method.before_step(ctx)
         optimizer.step()
+        stopping = stop is not None and stop.update(it, float(loss.detach()))
         schedule.step()
         method.after_step()
-        if it % 25 == 0 or it == cfg.iterations - 1:
+        if it % 25 == 0 or it == cfg.iterations - 1 or stopping:
             loss_value = float(loss.detach())
             if not math.isfinite(loss_value):
                 bar.close()
                 raise _diverged(desc, task, it, cfg, f"the loss is {loss_value}")
             bar.set_postfix(loss=f"{loss_value:.2e}", refresh=False)
         bar.update(1)
+        if stopping:
+            done = it + 1
+            break
     bar.close()
     loop_seconds = time.perf_counter() - loop_start
     method.on_task_end(task, data)
     method.eval()
-    return TrainStats(time.perf_counter() - start, cfg.iterations, loss_value, loop_seconds)
+    return TrainStats(time.perf_counter() - start, done, loss_value, loop_seconds)

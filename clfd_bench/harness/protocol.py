@@ -142,6 +142,7 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
         "train_cpu_s": [],
         "train_time_s_by_part": {p: [] for p in parts},
         "iterations_per_s_by_part": {p: [] for p in parts},
+        "iterations_by_part": {p: [] for p in parts},
         "final_loss_by_part": {p: [] for p in parts},
         "num_params": [],
         "num_params_by_part": {p: [] for p in parts},
@@ -241,6 +242,9 @@ def run_training(
                          {k[len(prefix):]: v for k, v in tensors.items() if k.startswith(prefix)})
         saved_state = header["state"]
         done = len(saved_state["train_time_s"])
+        # runs saved before the stop rule existed ran every iteration of every task
+        saved_state.setdefault("iterations_by_part", {
+            kind: [config.part(kind).iterations] * done for kind in learner.parts})
         if done > n_tasks:
             raise RunMismatchError(
                 f"{out} already holds {done} learned tasks, more than the {n_tasks} asked for; "
@@ -283,6 +287,7 @@ def run_training(
             times_by_part[kind] = stats.seconds
             state["train_time_s_by_part"][kind].append(stats.seconds)
             state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
+            state["iterations_by_part"][kind].append(stats.iterations)
             state["final_loss_by_part"][kind].append(stats.final_loss)
             state["num_params_by_part"][kind].append(part.method.num_params())
         provenance["cpu_by_task"].append(provenance["cpu"])
@@ -331,6 +336,11 @@ def _summary_line(config: RunConfig, name: str, i: int, n: int, state: dict,
     speeds = ", ".join(
         f"{v[-1]:.0f} it/s" for v in state["iterations_per_s_by_part"].values()
     )
+    stopped = [f"{kind} stopped at {its[-1]}/{config.part(kind).iterations} it"
+               for kind, its in state["iterations_by_part"].items()
+               if config.part(kind).stop_window > 0]
+    if stopped:
+        speeds += "; " + ", ".join(stopped)
     return (
         f"[{config.method} {config.dataset} seed {config.seed}] task {i + 1}/{n} {name!r}: "
         f"trained in {state['train_time_s'][-1]:.1f}s ({speeds}); mean DTW of seen tasks "

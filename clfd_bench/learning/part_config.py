@@ -158,6 +158,12 @@ PART_RULES: dict[str, Rule] = {
     "lr_min_factor": Rule("float", lo=0, hi=1, what="final lr / lr of the cosine schedule"),
     "lr_warmup": Rule("float", lo=0, hi=1, what="fraction of a task's iterations over which "
                       "the lr rises linearly to its value; 0: none"),
+    "stop_window": Rule("int", lo=0, what="iterations per window of the stop rule's smoothed "
+                        "loss; 0: off, every task runs all its iterations"),
+    "stop_rel": Rule("float", lo=0, hi=1, hi_open=True, what="relative improvement of the "
+                     "smoothed loss below which a window is a plateau"),
+    "stop_decays": Rule("int", lo=0, what="plateaus that divide the lr by 10 before one "
+                        "stops the task"),
     # networks
     "node_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the NODE"),
     "activation": Rule("str", choices=tuple(ACTIVATIONS)),
@@ -250,6 +256,13 @@ class PartConfig:
         lr_warmup: fraction of each task's iterations over which the learning rate rises
         linearly from ``lr / n`` to the schedule's value (``n`` = the warm-up's iterations);
         0 (the default, and the paper's): none. Left out of saved configs at 0.
+        stop_window, stop_rel, stop_decays: the stop rule on the training loss
+        (:mod:`clfd_bench.learning.stop_rule`): the mean loss over windows of
+        ``stop_window`` iterations, from the end of the warm-up and the horizon's growth; a
+        window not ``stop_rel`` (relative) below the best earlier one is a plateau; the first
+        ``stop_decays`` plateaus divide the lr by 10, the next stops the task, so
+        ``iterations`` becomes a cap. ``stop_window = 0`` (the default; paper, fast,
+        smoke): off. Left out of saved configs at their defaults.
     Batches (:mod:`clfd_bench.learning.batches`):
         batch: ``windows`` (paper: ``tsub`` consecutive samples) or ``trajectories`` (whole
         trajectories subsampled to ``points``, horizon growing from ``horizon_start`` over the
@@ -295,6 +308,9 @@ class PartConfig:
     lr_schedule: str = "constant"
     lr_min_factor: float = 0.0
     lr_warmup: float = 0.0
+    stop_window: int = 0
+    stop_rel: float = 0.01
+    stop_decays: int = 0
     activation: str = "elu"
     task_emb_dim: int = 0
     hnet_hidden: tuple[int, ...] = ()
@@ -411,6 +427,6 @@ SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_cl
 """The stable NODE's keys: left out of :meth:`PartConfig.to_dict` at their defaults, so the
 saved configs of NODE^T/NODE^I runs, and of runs made before they existed, do not change."""
 
-OMITTED_AT_DEFAULT = (*SNODE_KEYS, "lr_warmup")
+OMITTED_AT_DEFAULT = (*SNODE_KEYS, "lr_warmup", "stop_window", "stop_rel", "stop_decays")
 """Keys :meth:`PartConfig.to_dict` leaves out at their defaults (added after runs had been
 saved; a run without them has the defaults)."""

@@ -18,7 +18,9 @@ Choices where the paper is not specific to NODEs (or to this loop):
   weights (``packnet_retrain`` is a share, so it follows ``--set iterations=...``), with the
   loop's Adam and learning-rate schedule (the paper retrains for a few extra epochs; here the
   cosine schedule is low by then). The training budget and time stay those of FT.
-  ``packnet_retrain = 0`` prunes after the last iteration, without retraining.
+  ``packnet_retrain = 0`` prunes after the last iteration, without retraining. The stop rule
+  (``stop_window > 0``) would end a task before its retraining share, so PackNet refuses it
+  unless ``packnet_retrain = 0``.
 * **Pruned weights are set to zero** when the task ends (pruning removes them from the
   network) and the next task trains them from zero, so it starts from the pruned network of
   the earlier tasks rather than from random values. Pruning is per weight matrix (the paper
@@ -45,7 +47,7 @@ import torch
 from torch import Tensor, nn
 
 from clfd_bench.learning.fields import Field
-from clfd_bench.learning.part_config import Rule
+from clfd_bench.learning.part_config import ConfigError, Rule
 from clfd_bench.methods.base import StepContext, TaskData
 from clfd_bench.methods.conditioned import ConditionedNodeMethod
 
@@ -83,6 +85,12 @@ class PackNet(ConditionedNodeMethod):
     }
 
     def __init__(self, node, cfg):
+        if cfg.stop_window > 0 and cfg.extra("packnet_retrain") > 0:
+            raise ConfigError(
+                f"packnet retrains in the last packnet_retrain = {cfg.extra('packnet_retrain')}"
+                f" of a task's iterations, which the stop rule (stop_window = "
+                f"{cfg.stop_window}) would cut off, pruning without retraining; set "
+                "stop_window=0 or packnet_retrain=0")
         super().__init__(node, cfg)
         for i in self.matrices:
             self.register_buffer(

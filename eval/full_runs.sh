@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# The `full` profile's long runs (issue 38, item 5): the paper's seven methods at the paper's
+# model sizes, one worker, one torch thread, niced, in this order:
+#   1. HelloWorld seed 0        2. RoboTasks seed 0
+#   3. HelloWorld seeds 0,1,2   4. RoboTasks seeds 0,1,2   (seed 0 is already done: reused)
+#   5. RoboTasks9 seed 0        6. LASA seed 0
+# Each stage is `clfd-bench leaderboard --profile full`, which skips finished runs and resumes
+# a killed one after its last finished task, so the same command resumes the whole list:
+#
+#   setsid nohup bash eval/full_runs.sh /work/data/full >> /work/data/full-runs.log 2>&1 &
+#
+# OUT (default results/full) gets one leaderboard folder per dataset (OUT/helloworld, ...).
+# A second copy started while one runs exits at once (a lock in OUT). Environment: the
+# caller's (CLFD_DATA_DIR, MENAGERIE_ROOT, an activated venv with clfd-bench installed);
+# this checkout's clfd_bench is put first on PYTHONPATH. CLFD_FULL_STAGES="1 2" runs only
+# those stages; CLFD_FULL_METHODS overrides the methods (default the paper's seven);
+# CLFD_FULL_PROFILE another profile (default full; smoke checks this script in minutes).
+set -uo pipefail
+# Everything runs inside main, called on the last line: bash parses the whole file before the
+# first run starts, so editing this file while it runs cannot change what it does.
+
+stage() {  # stage N DATASET SEEDS
+  local n="$1" dataset="$2" seeds="$3"
+  case " $stages " in *" $n "*) ;; *) return 0 ;; esac
+  echo "[full_runs] $(date -u +%FT%TZ) stage $n: $dataset seeds $seeds -> $out/$dataset"
+  /usr/bin/time -f "[full_runs] stage $n: %U s user, %S s system, %e s wall" \
+    nice -n 10 python -m clfd_bench.cli.main leaderboard --dataset "$dataset" \
+    --profile "$profile" --methods "$methods" --seeds "$seeds" --workers 1 --out "$out/$dataset"
+  echo "[full_runs] $(date -u +%FT%TZ) stage $n: exit $?"
+}
+
+main() {
+  repo="$(cd "$(dirname "$0")/.." && pwd)"
+  out="${1:-$repo/results/full}"
+  methods="${CLFD_FULL_METHODS:-sg,ft,rep,si,mas,hn,chn}"
+  stages="${CLFD_FULL_STAGES:-1 2 3 4 5 6}"
+  profile="${CLFD_FULL_PROFILE:-full}"
+  export PYTHONPATH="$repo${PYTHONPATH:+:$PYTHONPATH}"
+  export CLFD_NO_PROGRESS=1 MUJOCO_GL="${MUJOCO_GL:-egl}"
+
+  mkdir -p "$out"
+  exec 9>"$out/.full_runs.lock"
+  if ! flock -n 9; then
+    echo "[full_runs] another full_runs.sh holds $out/.full_runs.lock; not starting" >&2
+    return 3
+  fi
+
+  echo "[full_runs] $(date -u +%FT%TZ) start, profile $profile: $repo" \
+    "($(git -C "$repo" rev-parse --short HEAD 2>/dev/null)), out $out"
+  stage 1 helloworld 0
+  stage 2 robotasks 0
+  stage 3 helloworld 0,1,2
+  stage 4 robotasks 0,1,2
+  stage 5 robotasks9 0
+  stage 6 lasa 0
+  echo "[full_runs] $(date -u +%FT%TZ) all stages done"
+}
+
+main "$@"; exit $?
