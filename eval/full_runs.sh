@@ -7,7 +7,7 @@
 # Each stage is `clfd-bench leaderboard --profile full`, which skips finished runs and resumes
 # a killed one after its last finished task, so the same command resumes the whole list:
 #
-#   setsid nohup bash eval/full_runs.sh /work/data/full >> /work/data/full-runs.log 2>&1 &
+#   setsid nohup bash eval/full_runs.sh results/full >> results/full-runs.log 2>&1 &
 #
 # OUT (default results/full) gets one leaderboard folder per dataset (OUT/helloworld, ...).
 # A second copy started while one runs exits at once (a lock in OUT). Environment: the
