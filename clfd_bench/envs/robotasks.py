@@ -248,9 +248,9 @@ Sparse: 1.0 on a step where the task's success predicate holds, else 0.0. The pr
 the whole episode so far, not only the current state (thresholds in `tasks/<task>.toml
 [success]`):
 
-- openbox: while holding the lid, the grasp opened it to at least demo j's own final angle less
-  what 1.5 cm of arc turn it ({open_min:.1f}-{open_max:.1f} deg over the demos); then the gripper
-  opened (the lid never slipped out); the lid is still open (at most
+- openbox: while holding the lid, the grasp opened it as far as another demo opens it (the least
+  of the demos' final angles, each less what 1.5 cm of arc turn it: {open_min:.1f} deg); then
+  the gripper opened (the lid never slipped out); the lid is still open (at most
   {stay_tol:g} deg below that angle).
 - bottle2shelf: the bottle was held until the gripper opened; at that moment its lowest point
   was at most {bottle_drop_cm:.1f} cm above the shelf (the demos let it go
@@ -262,8 +262,9 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   gripper opened, at most {plate_drop_cm:.1f} cm above the platform and within
   {plate_radius_cm:.1f} cm of where demo j lets it go; now it lies on the platform (normal
   within {plate_tilt:g} deg of vertical).
-- pouring: the cup never slipped; it was emptied where demo j empties it (the cup's mouth, on
-  average as the beans left it, within {pour_radius_cm:.1f} cm of where demo j's was); at least
+- pouring: the cup never slipped; it was emptied where a demo empties it (the cup's mouth, on
+  average as the beans left it, within {pour_radius_cm:.1f} cm of where demo j's was: as far as
+  two demos' pour points lie apart); at least
   {min_fraction_pct:.0f} % of the beans are in the container and at most {max_spill_pct:.0f} %
   ever landed outside it (on the table, the container's rim, ...).
 - wineglass: the drying tray was never moved more than {tray_shift_cm:g} cm or tilted more than
@@ -281,6 +282,9 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   and, when let go, was back within {end_turn:.1f} deg of its start heading; it was let go at
   most {box_drop_cm:.1f} cm above the shelf and within {box_radius_cm:.1f} cm of where demo j
   lets it go; now it lies on the shelf.
+- The place radii (bottle2shelf to obstaclerotate) are the demos' own spread: the largest
+  distance between two demos' release points (at least 2 cm); a prop let go within it is let go
+  where another demo lets it go.
 - matfolding: the mat's edge was held until the gripper opened; at that moment it was within
   {fold_radius_cm:.1f} cm of where demo j lets it go on the mat (in the far half's frame) and
   within {mat_place_radius_cm:.1f} cm of where demo j lets it go in the room; now the far half lies
