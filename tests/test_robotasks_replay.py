@@ -273,3 +273,41 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
         assert row.succeeded == expected, row
     with pytest.raises(KeyError, match="valid"):
         run_variants("clfd/WineGlass-v2", ["spin it"])
+
+
+def test_a_plate_laid_where_another_demo_lays_it_passes_and_farther_fails(envs):
+    """The place radius is the demos' own release spread: demo 1's path, moved so that the plate
+    is let go where demo 7 lets it go (5.7 cm from demo 1's point, the demos' farthest pair),
+    lays it as another demo does; moved 1.5x as far, it is let go farther from demo 1's point
+    than any demo lets it go from another's, and fails by that alone."""
+    env = envs["platestandingtolying"]
+    doc = env.unwrapped.spec_doc
+    points = np.asarray(doc["derived"]["release_point_demos"])
+    gap = points[7] - points[1]
+    assert doc["success"]["place_radius"] == pytest.approx(np.linalg.norm(gap))
+    base = env.unwrapped.demo_trajectory(1)
+    ramp = np.linspace(0.0, 1.0, len(base))[:, None]
+    for scale, ok in ((1.0, True), (1.5, False)):
+        traj = base.copy()
+        traj[:, :2] += ramp * scale * gap
+        r = rollout(env, traj, demo=1)
+        assert r.success is ok, (scale, r.info)
+        if not ok:
+            assert _failed(r.info) == ["release_offset"]
+
+
+def test_a_drift_that_ends_within_the_demos_spread_is_no_wrong_trajectory():
+    """`within_demo_spread`: a drift whose rollout passes every spread check (the place radius,
+    the pour radius, the lid's angle) is n/a; one that fails one of them, another family, or
+    an env without such a check counts."""
+    from clfd_bench.execution.replay import within_demo_spread
+
+    def info(**passed):
+        return {"checks": [{"name": n, "passed": p} for n, p in passed.items()]}
+
+    assert within_demo_spread("drift", info(release_offset=True, release_height=False))
+    assert within_demo_spread("drift", info(pour_offset=True, beans_in_container=False))
+    assert not within_demo_spread("drift", info(release_offset=False, release_height=True))
+    assert not within_demo_spread("shortcut", info(release_offset=True))
+    assert not within_demo_spread("drift", info(hausdorff=True, goal=True))  # no spread check
+    assert not within_demo_spread("drift", {})  # refused before the scene judged it

@@ -17,6 +17,15 @@ has already come to rest by half time is the demo itself, not a wrong trajectory
 demo's second half moves the hand less than `REST_TOLERANCE` (5 mm, the servo lag and IK error
 part of the position margins, and 2 deg) from where it is at half time, the variant is n/a too
 (MatFolding demo 0 folds in 8.5 of its 16.7 s and rests for the rest: 2.3 mm, 0.2 deg).
+
+The same holds for where an execution ends. Some scene bounds are the demos' own spread: a
+RoboTasks prop may be let go as far from demo j's release point as another demo lets it go
+(`release_offset`), the cup emptied as far from demo j's pour point as another demo empties it
+(`pour_offset`), the lid opened as far as the least-opened demo (`lid_opened`)
+(`clfd_bench.envs.robotask_derive`). A variant of a family that is wrong only by where it ends
+(`END_FAMILIES`: drift) whose rollout passes every such check (`SPREAD_CHECKS`) ends within the
+demos' spread: it is not a wrong trajectory and is counted "n/a" (`within_demo_spread`). Where
+it ends beyond that spread, the check it passes nowhere else fails it, and it counts.
 """
 
 from __future__ import annotations
@@ -36,9 +45,10 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
 from clfd_bench.metrics.trajectory import hausdorff
 
-__all__ = ["MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES", "ReplayRecord",
-           "confusion_table", "families_for", "format_confusion", "is_distinct", "replay",
-           "replay_trajectory"]
+__all__ = ["END_FAMILIES", "MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES",
+           "SPREAD_CHECKS", "ReplayRecord", "confusion_table", "families_for",
+           "format_confusion", "is_distinct", "replay", "replay_trajectory",
+           "within_demo_spread"]
 
 #: A must-fail family may succeed on at most this fraction of an env's demos.
 MAX_FALSE_SUCCESS = 0.05
@@ -47,6 +57,10 @@ SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
 #: A demo whose second half stays within (m, deg) of its pose at half time is at rest by then:
 #: its `stop-early` variant is not a wrong trajectory (see the module docstring).
 REST_TOLERANCE = (0.005, 2.0)
+#: Must-fail families that are wrong only by where they end (see the module docstring).
+END_FAMILIES = ("drift",)
+#: Scene checks (`info["checks"]` names) whose bound is the demos' own spread of where they end.
+SPREAD_CHECKS = ("release_offset", "pour_offset", "lid_opened")
 
 
 @dataclasses.dataclass
@@ -168,6 +182,17 @@ def is_distinct(env: PandaEnv, demo: int, family: str,
     return hausdorff(_positions_m(env, trajectory), _positions_m(env, original)) > spread
 
 
+def within_demo_spread(family: str, info: dict[str, Any]) -> bool:
+    """Whether a rollout of `family` ended within the demos' own spread, so that it is no wrong
+    trajectory: the family is wrong only by where it ends (`END_FAMILIES`) and the env's
+    `info["checks"]` hold at least one check of `SPREAD_CHECKS` and every one of them passed.
+    False for every other family and for an env that reports no such check."""
+    if family not in END_FAMILIES:
+        return False
+    spread = [c for c in info.get("checks") or () if c.get("name") in SPREAD_CHECKS]
+    return bool(spread) and all(bool(c["passed"]) for c in spread)
+
+
 def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo",
            settle_s: float = DEFAULT_SETTLE_S, env: gym.Env | None = None,
            **env_kwargs: Any) -> list[ReplayRecord]:
@@ -195,6 +220,7 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
             t0 = time.perf_counter()
             result = rollout(env, traj, demo=j, settle_s=settle_s)
             wall = time.perf_counter() - t0
+            applicable = applicable and not within_demo_spread(family, result.info)
             err = result.tracking_error_pos
             records.append(ReplayRecord(
                 env_id=env_id, demo=j, family=family, success=result.success,
@@ -212,8 +238,8 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
 def confusion_table(records: Iterable[ReplayRecord | dict[str, Any]]
                     ) -> dict[str, dict[str, dict[str, Any]]]:
     """{env: {family: {"n", "successes", "expect", "ok", "failure_kinds"}}} from replay
-    records (objects or their `to_json()` dicts), plus "not_applicable": variants of a shape
-    family that are no wrong trajectory (`is_distinct`), left out of "n". `ok` is False where a
+    records (objects or their `to_json()` dicts), plus "not_applicable": variants that are no
+    wrong trajectory (`is_distinct`, `within_demo_spread`), left out of "n". `ok` is False where a
     must-succeed family failed on any demo or a must-fail family succeeded on more than
     `MAX_FALSE_SUCCESS` of its applicable demos."""
     table: dict[str, dict[str, dict[str, Any]]] = {}
@@ -260,6 +286,8 @@ def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
                  "cell that does not. n/a: variants of a shape family (shortcut, rush-wait, "
                  "mirror) that stay within the task's own inter-demo spread (largest Hausdorff "
                  "distance between two demos) of the demo, and stop-early variants of a demo "
-                 "already at rest at half time (its second half moves < 5 mm, < 2 deg): no "
-                 "wrong trajectory, not counted.")
+                 "already at rest at half time (its second half moves < 5 mm, < 2 deg), and "
+                 "drift variants whose rollout ends within the demos' own spread (every "
+                 "check of " + ", ".join(SPREAD_CHECKS) + " it reports passes): no wrong "
+                 "trajectory, not counted.")
     return "\n".join(lines)
