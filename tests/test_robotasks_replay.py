@@ -277,9 +277,10 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
 
 def test_a_plate_laid_where_another_demo_lays_it_passes_and_farther_fails(envs):
     """The place radius is the demos' own release spread: demo 1's path, moved so that the plate
-    is let go where demo 7 lets it go (5.7 cm from demo 1's point, the demos' farthest pair),
-    lays it as another demo does; moved 1.5x as far, it is let go farther from demo 1's point
-    than any demo lets it go from another's, and fails by that alone."""
+    is let go nine tenths of the way to where demo 7 lets it go (5.2 cm from demo 1's point;
+    5.7 cm, the demos' farthest pair), lays it as another demo does; moved 1.5x as far, it is
+    let go farther from demo 1's point than any demo lets it go from another's, and fails by
+    that alone."""
     env = envs["platestandingtolying"]
     doc = env.unwrapped.spec_doc
     points = np.asarray(doc["derived"]["release_point_demos"])
@@ -287,7 +288,7 @@ def test_a_plate_laid_where_another_demo_lays_it_passes_and_farther_fails(envs):
     assert doc["success"]["place_radius"] == pytest.approx(np.linalg.norm(gap))
     base = env.unwrapped.demo_trajectory(1)
     ramp = np.linspace(0.0, 1.0, len(base))[:, None]
-    for scale, ok in ((1.0, True), (1.5, False)):
+    for scale, ok in ((0.9, True), (1.5, False)):
         traj = base.copy()
         traj[:, :2] += ramp * scale * gap
         r = rollout(env, traj, demo=1)

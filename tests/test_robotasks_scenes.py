@@ -323,20 +323,16 @@ def test_glass_success_needs_it_standing_upright_on_the_shelf_and_the_tray_untou
         mujoco.mj_forward(env.model, env.data)
         ok, info = env.scene.success(env.data, env.grasp)
         assert ok is expected, (name, info)
-    # Put back upright: a tray knocked 2 cm at some step fails it for good.
+    # Put back upright: a tray nudged 1.5 cm at some step still passes (within the 2 cm bound),
+    # one knocked 3 cm fails it for good.
     set_free_pose(env.model, env.data, glass, standing, upright)
     _release_record(env, 0.02, 0.005)
     mujoco.mj_forward(env.model, env.data)
     assert env.scene.success(env.data, env.grasp)[0] is True
-    tray, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
-    quat = env.data.xquat[tray].copy()
-    set_free_pose(env.model, env.data, tray, start + [0.0, 0.02, 0.0], quat)
-    mujoco.mj_forward(env.model, env.data)
-    env.scene.track(env.data, env.grasp)
-    set_free_pose(env.model, env.data, tray, start, quat)
-    mujoco.mj_forward(env.model, env.data)
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.0, 0.015, 0.0]) is True
     ok, info = env.scene.success(env.data, env.grasp)
-    assert ok is False and info["tray_in_place"] is False
+    assert ok is True and info["tray_in_place"] is True
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.0, 0.03, 0.0]) is False
 
 
 def test_wineglass_tray_and_shelf_are_what_the_demos_derive():
@@ -382,15 +378,22 @@ def test_pan_success_needs_it_flat_on_the_stove_bottom_down_and_the_rack_untouch
         assert ok is expected, (name, info)
     set_free_pose(env.model, env.data, pan, flat, down)
     _release_record(env, 0.03, 0.005)
-    rack, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
-    quat = env.data.xquat[rack].copy()
-    set_free_pose(env.model, env.data, rack, start + [0.02, 0.0, 0.0], quat)
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.015, 0.0, 0.0]) is True
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.03, 0.0, 0.0]) is False
+    assert env.scene.success(env.data, env.grasp)[1]["rack_in_place"] is False
+
+
+def _knocked(env, body, watch, shift):
+    """Moves the rack / tray `body` by `shift` (m) for one tracked step, puts it back, and
+    returns the scene's verdict (the largest shift at any step is what counts)."""
+    start = watch.start.copy()
+    quat = env.data.xquat[body].copy()
+    set_free_pose(env.model, env.data, body, start + np.asarray(shift), quat)
     mujoco.mj_forward(env.model, env.data)
     env.scene.track(env.data, env.grasp)
-    set_free_pose(env.model, env.data, rack, start, quat)
+    set_free_pose(env.model, env.data, body, start, quat)
     mujoco.mj_forward(env.model, env.data)
-    ok, info = env.scene.success(env.data, env.grasp)
-    assert ok is False and info["rack_in_place"] is False
+    return env.scene.success(env.data, env.grasp)[0]
 
 
 def test_pan2stove_rack_and_stove_are_what_the_demos_derive():
