@@ -312,3 +312,18 @@ def test_a_drift_that_ends_within_the_demos_spread_is_no_wrong_trajectory():
     assert not within_demo_spread("shortcut", info(release_offset=True))
     assert not within_demo_spread("drift", info(hausdorff=True, goal=True))  # no spread check
     assert not within_demo_spread("drift", {})  # refused before the scene judged it
+
+
+def test_replay_counts_a_drift_within_the_demos_release_spread_n_a(envs):
+    """A 5 cm drift of PlateStacking demo 8 lets the plate go 2.4 cm from demo 8's point, within
+    the 5.7 cm the demos' own release points span: n/a. The bottle's demos let go within 0.9 cm
+    of each other (radius 2 cm): its drift of demo 8, let go 2.1 cm off, counts and fails."""
+    from clfd_bench.execution.replay import replay
+
+    (plate,) = replay("clfd/PlateStacking-v2", [8], "drift", env=envs["platestandingtolying"])
+    assert not plate.applicable
+    assert plate.info["release_offset"] < envs["platestandingtolying"].unwrapped.spec_doc[
+        "success"]["place_radius"]
+    (bottle,) = replay("clfd/BottleShelving-v2", [8], "drift", env=envs["bottle2shelf"])
+    assert bottle.applicable and not bottle.success
+    assert "release_offset" in _failed(bottle.info)
