@@ -1,7 +1,7 @@
 """clfd-bench: a simulation benchmark for continual learning from demonstration.
 
 Importing the package registers the Gymnasium environments (namespace ``clfd``), so
-``gymnasium.make("clfd/PlateStacking-v2")`` works after ``import clfd_bench``. Registration
+``gymnasium.make("clfd/PlateStacking-v3")`` works after ``import clfd_bench``. Registration
 uses string entry points: nothing heavy (MuJoCo, torch) is imported until an env is made.
 
 ``clfd_bench.score_predictions(...)`` scores predictions made elsewhere into a run directory

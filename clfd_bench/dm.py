@@ -3,7 +3,7 @@
 ```python
 from clfd_bench import dm
 
-env = dm.load("PlateStacking-v2", options={"demo": 3})   # or "clfd/PlateStacking-v2"
+env = dm.load("PlateStacking-v3", options={"demo": 3})   # or "clfd/PlateStacking-v3"
 timestep = env.reset()                                   # StepType.FIRST
 while not timestep.last():
     timestep = env.step(policy(timestep.observation))    # action [8]: hand pose + gripper
@@ -86,16 +86,16 @@ class UnknownEnvError(KeyError):
 
 
 def names() -> list[str]:
-    """The names `load` accepts, without the namespace (e.g. "PlateStacking-v2"), sorted; the
+    """The names `load` accepts, without the namespace (e.g. "PlateStacking-v3"), sorted; the
     same with "clfd/" in front are accepted too."""
     register_envs()
     return [env_id.split("/", 1)[1] for env_id in registered_env_ids()]
 
 
 def _resolve(name: str) -> str:
-    """The registered id of `name` ("PlateStacking-v2", "clfd/PlateStacking-v2", or without the
+    """The registered id of `name` ("PlateStacking-v3", "clfd/PlateStacking-v3", or without the
     version for the current one). Raises `UnknownEnvError` with the registry's own reason (e.g.
-    Gymnasium's "version v0 ... is deprecated. Please use `clfd/PlateStacking-v2`") and the
+    Gymnasium's "version v0 ... is deprecated. Please use `clfd/PlateStacking-v3`") and the
     valid names."""
     register_envs()
     ids = registered_env_ids()
@@ -238,8 +238,8 @@ def load(name: str, *, seed: int | None = None, options: Mapping[str, Any] | Non
     """A clfd-bench task as a `dm_env.Environment`.
 
     Args:
-        name: an env id with or without the namespace ("PlateStacking-v2",
-            "clfd/PlateStacking-v2"; without a version, the current one); `names()` lists them.
+        name: an env id with or without the namespace ("PlateStacking-v3",
+            "clfd/PlateStacking-v3"; without a version, the current one); `names()` lists them.
         seed: seed of the first reset (only the demo drawn when `options` has no `demo`
             depends on it).
         options: reset options used at every reset: `demo` (int), `horizon` (int steps).

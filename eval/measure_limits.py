@@ -1,6 +1,6 @@
 """Re-runs the measurement behind the executability bounds of `clfd_bench.sim.limits`.
 
-    python eval/measure_limits.py [--envs clfd/Pouring-v2 ...] [--json FILE]
+    python eval/measure_limits.py [--envs clfd/Pouring-v3 ...] [--json FILE]
     python eval/measure_limits.py --load FILE      # the table of a saved measurement
 
 Every demo of every env (RoboTasks, HelloWorld letters, LASA shapes), as recorded, 2× slower

@@ -73,7 +73,7 @@ def test_every_id_has_a_conformance_class():
     assert dm.names() == [i.split("/", 1)[1] for i in ENV_IDS]
 
 
-@pytest.mark.parametrize("env_id", ["clfd/PlateStacking-v2", "clfd/LASA-Angle-v3"])
+@pytest.mark.parametrize("env_id", ["clfd/PlateStacking-v3", "clfd/LASA-Angle-v3"])
 def test_step_types_and_discounts(env_id):
     """Time limit: LAST with discount 1.0; a refused command: LAST with discount 0.0; the
     step after LAST starts an episode."""
@@ -101,7 +101,7 @@ def _gym(env_id: str):
         return gym.make(env_id).unwrapped
 
 
-@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v2", "clfd/HelloWorld-e-v3"])
+@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v3", "clfd/HelloWorld-e-v3"])
 def test_same_observations_and_rewards_as_gymnasium(env_id):
     """Same seed (the demo is drawn with it), same actions: the same observations, rewards and
     ends as the Gymnasium env, bit for bit (one implementation)."""
@@ -149,7 +149,7 @@ def _replay(env_id: str, trajectory: np.ndarray, demo: int
     return ts, steps, info
 
 
-@pytest.mark.parametrize(("env_id", "demo"), [("clfd/PlateStacking-v2", 2),
+@pytest.mark.parametrize(("env_id", "demo"), [("clfd/PlateStacking-v3", 2),
                                               ("clfd/HelloWorld-h-v3", 1)])
 def test_demo_replay_succeeds_and_a_shortcut_fails(env_id, demo):
     gym_env = _gym(env_id)
@@ -168,7 +168,7 @@ def test_demo_replay_succeeds_and_a_shortcut_fails(env_id, demo):
 
 
 def test_physics_is_the_env_state():
-    env = dm.load("PlateStacking-v2", options={"demo": 0})
+    env = dm.load("PlateStacking-v3", options={"demo": 0})
     gym_env, physics = env.gym_env, env.physics
     assert physics.model.ptr is gym_env.model and physics.data.ptr is gym_env.data
     env.reset()
@@ -186,7 +186,7 @@ def test_physics_is_the_env_state():
 
 
 def test_pickles_mid_episode():
-    env = dm.load("PlateStacking-v2", seed=3, options={"demo": 1})
+    env = dm.load("PlateStacking-v3", seed=3, options={"demo": 1})
     actions = _demo_actions(env, 1)
     env.reset()
     for a in actions[:5]:
@@ -210,18 +210,18 @@ def test_unknown_name_lists_the_valid_names():
     msg = str(err.value)
     assert msg.startswith("no clfd-bench env 'PlateStackin-v2' (Environment `PlateStackin` "
                           "doesn't exist in namespace clfd. Did you mean: `PlateStacking`?); "
-                          "valid names (with or without 'clfd/'): BottleShelving-v2, ")
+                          "valid names (with or without 'clfd/'): BottleShelving-v3, ")
     assert all(n in msg for n in dm.names())
     # An old version: the registry's message names the current one.
-    with pytest.raises(dm.UnknownEnvError, match=r"Please use `clfd/PlateStacking-v2`"):
+    with pytest.raises(dm.UnknownEnvError, match=r"Please use `clfd/PlateStacking-v3`"):
         dm.load("PlateStacking-v0")
     # Not an id at all, or another namespace: the same error.
     with pytest.raises(dm.UnknownEnvError, match=r"Malformed environment ID"):
         dm.load("plate stacking")
     with pytest.raises(dm.UnknownEnvError, match=r"in the namespace 'clfd', not 'gym'"):
-        dm.load("gym/PlateStacking-v2")
+        dm.load("gym/PlateStacking-v3")
     # With or without the namespace, without a version: the current version.
-    assert type(dm.load("clfd/PlateStacking-v2").gym_env).__name__ == "RoboTaskEnv"
+    assert type(dm.load("clfd/PlateStacking-v3").gym_env).__name__ == "RoboTaskEnv"
     assert dm.load("LASA-Angle").gym_env.task_name == "Angle"
 
 

@@ -69,7 +69,7 @@ def test_stop_early_of_a_demo_at_rest_by_half_time_is_no_wrong_trajectory():
             if not is_distinct(base, d, "stop-early", half):
                 at_rest.append((env_id, d))
         env.close()
-    assert at_rest == [("clfd/MatFolding-v2", 0)]
+    assert at_rest == [("clfd/MatFolding-v3", 0)]
 
 
 def test_valid_alternatives_of_outcome_judged_tasks_are_no_wrong_trajectories():

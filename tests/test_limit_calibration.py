@@ -133,10 +133,10 @@ def letter_env():
 
 
 def test_measure_two_demos():
-    cal = measure([LETTER, "clfd/BoxOpening-v2"], families=("demo",), demos=[0],
+    cal = measure([LETTER, "clfd/BoxOpening-v3"], families=("demo",), demos=[0],
                   progress=False)
     assert [(r.env_id, r.demo, r.family) for r in cal.records] == [
-        (LETTER, 0, "demo"), ("clfd/BoxOpening-v2", 0, "demo")]
+        (LETTER, 0, "demo"), ("clfd/BoxOpening-v3", 0, "demo")]
     for r in cal.records:
         assert r.success and r.failure_reason is None
         assert r.steps == r.trajectory_steps + 60  # 1 s of settling at 60 Hz
@@ -155,7 +155,7 @@ def test_measure_two_demos():
     assert np.all(np.diff(box.rotation_peaks[:, 1]) < 0)
     assert box.rotation_peaks[-1, 1] < L.ROTATION_ACCELERATION
     d = cal.derive()
-    assert d.tracking_position_measured.env_id == "clfd/BoxOpening-v2"
+    assert d.tracking_position_measured.env_id == "clfd/BoxOpening-v3"
     assert d.tracking_position == L.TRACKING_FLOOR_POSITION  # 2 x ~1 mm < the 10 mm floor
     assert d.n_rollouts == d.n_successes == 2
     rows = {c.name: c for c in compare(cal)}

@@ -15,11 +15,11 @@ from clfd_bench.envs.base import load_task
 from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 
-ENVS = {"openbox": "clfd/BoxOpening-v2", "bottle2shelf": "clfd/BottleShelving-v2",
-        "platestandingtolying": "clfd/PlateStacking-v2", "pouring": "clfd/Pouring-v2",
-        "wineglass": "clfd/WineGlass-v2", "pan2stove": "clfd/PanToStove-v2",
-        "obstaclerotate": "clfd/ObstacleRotate-v2", "matfolding": "clfd/MatFolding-v2",
-        "scoop": "clfd/Scoop-v2"}
+ENVS = {"openbox": "clfd/BoxOpening-v3", "bottle2shelf": "clfd/BottleShelving-v3",
+        "platestandingtolying": "clfd/PlateStacking-v3", "pouring": "clfd/Pouring-v3",
+        "wineglass": "clfd/WineGlass-v3", "pan2stove": "clfd/PanToStove-v3",
+        "obstaclerotate": "clfd/ObstacleRotate-v3", "matfolding": "clfd/MatFolding-v3",
+        "scoop": "clfd/Scoop-v3"}
 
 
 @pytest.fixture(scope="module")
@@ -265,15 +265,69 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
     tasks' typical wrong ones fail (limits on, as a real Panda)."""
     from clfd_bench.execution.task_variants import run_variants
 
-    checks = [("clfd/WineGlass-v2", "lift 8 cm, then a straight line, turning on it", 1),
-              ("clfd/PanToStove-v2", "pull back 12 cm, rise, carry above the stove, descend", 1),
-              ("clfd/PanToStove-v2", "turned half as far", 0),
-              ("clfd/ObstacleRotate-v2", "carried unturned, turned and back over the shelf", 0),
-              ("clfd/ObstacleRotate-v2", "turned as the demo, never back", 0),
-              ("clfd/MatFolding-v2", "the arc 5 cm higher", 1),
-              ("clfd/MatFolding-v2", "laid down at 80 % of the way (short of the far edge)", 0)]
+    checks = [("clfd/WineGlass-v3", "lift 8 cm, then a straight line, turning on it", 1),
+              ("clfd/PanToStove-v3", "pull back 12 cm, rise, carry above the stove, descend", 1),
+              ("clfd/PanToStove-v3", "turned half as far", 0),
+              ("clfd/ObstacleRotate-v3", "carried unturned, turned and back over the shelf", 0),
+              ("clfd/ObstacleRotate-v3", "turned as the demo, never back", 0),
+              ("clfd/MatFolding-v3", "the arc 5 cm higher", 1),
+              ("clfd/MatFolding-v3", "laid down at 80 % of the way (short of the far edge)", 0)]
     for env_id, name, expected in checks:
         (row,) = run_variants(env_id, [name], demos=[4])
         assert row.succeeded == expected, row
     with pytest.raises(KeyError, match="valid"):
-        run_variants("clfd/WineGlass-v2", ["spin it"])
+        run_variants("clfd/WineGlass-v3", ["spin it"])
+
+
+def test_a_plate_laid_where_another_demo_lays_it_passes_and_farther_fails(envs):
+    """The place radius is the demos' own release spread: demo 1's path, moved so that the plate
+    is let go nine tenths of the way to where demo 7 lets it go (5.2 cm from demo 1's point;
+    5.7 cm, the demos' farthest pair), lays it as another demo does; moved 1.5x as far, it is
+    let go farther from demo 1's point than any demo lets it go from another's, and fails by
+    that alone."""
+    env = envs["platestandingtolying"]
+    doc = env.unwrapped.spec_doc
+    points = np.asarray(doc["derived"]["release_point_demos"])
+    gap = points[7] - points[1]
+    assert doc["success"]["place_radius"] == pytest.approx(np.linalg.norm(gap))
+    base = env.unwrapped.demo_trajectory(1)
+    ramp = np.linspace(0.0, 1.0, len(base))[:, None]
+    for scale, ok in ((0.9, True), (1.5, False)):
+        traj = base.copy()
+        traj[:, :2] += ramp * scale * gap
+        r = rollout(env, traj, demo=1)
+        assert r.success is ok, (scale, r.info)
+        if not ok:
+            assert _failed(r.info) == ["release_offset"]
+
+
+def test_a_drift_that_ends_within_the_demos_spread_is_no_wrong_trajectory():
+    """`within_demo_spread`: a drift whose rollout passes every spread check (the place radius,
+    the pour radius, the lid's angle) is n/a; one that fails one of them, another family, or
+    an env without such a check counts."""
+    from clfd_bench.execution.replay import within_demo_spread
+
+    def info(**passed):
+        return {"checks": [{"name": n, "passed": p} for n, p in passed.items()]}
+
+    assert within_demo_spread("drift", info(release_offset=True, release_height=False))
+    assert within_demo_spread("drift", info(pour_offset=True, beans_in_container=False))
+    assert not within_demo_spread("drift", info(release_offset=False, release_height=True))
+    assert not within_demo_spread("shortcut", info(release_offset=True))
+    assert not within_demo_spread("drift", info(hausdorff=True, goal=True))  # no spread check
+    assert not within_demo_spread("drift", {})  # refused before the scene judged it
+
+
+def test_replay_counts_a_drift_within_the_demos_release_spread_n_a(envs):
+    """A 5 cm drift of PlateStacking demo 8 lets the plate go 2.4 cm from demo 8's point, within
+    the 5.7 cm the demos' own release points span: n/a. The bottle's demos let go within 0.9 cm
+    of each other (radius 2 cm): its drift of demo 8, let go 2.1 cm off, counts and fails."""
+    from clfd_bench.execution.replay import replay
+
+    (plate,) = replay("clfd/PlateStacking-v3", [8], "drift", env=envs["platestandingtolying"])
+    assert not plate.applicable
+    assert plate.info["release_offset"] < envs["platestandingtolying"].unwrapped.spec_doc[
+        "success"]["place_radius"]
+    (bottle,) = replay("clfd/BottleShelving-v3", [8], "drift", env=envs["bottle2shelf"])
+    assert bottle.applicable and not bottle.success
+    assert "release_offset" in _failed(bottle.info)

@@ -90,11 +90,14 @@ def test_openbox_spec_is_what_the_demos_derive(robotasks):
     assert bounds["handle_radial"][0] + 0.015 == pytest.approx(radial.min())
     assert bounds["handle_axial"][1] - 0.015 == pytest.approx(axial.max())
     assert np.degrees(bounds["handle_turn"][1]) - 10.0 == pytest.approx(np.degrees(turn.max()))
-    # Each demo's own opening angle is reached at its end, never at half time by any demo.
+    # One angle for every demo j: as far as the least-opened demo opens the lid (less 1.5 cm of
+    # arc at its radius), reached at the end of every demo, never at half time by any demo.
     half = spec["derived"]["grasp_angle_half_deg"]
-    need = np.asarray(spec["success"]["min_open_angle_deg"])
-    assert np.all(need < np.asarray(spec["derived"]["grasp_angle_end_deg"]))
-    assert np.all(need > max(half))
+    end = np.asarray(spec["derived"]["grasp_angle_end_deg"])
+    need = float(spec["success"]["min_open_angle_deg"])
+    arc = np.degrees(0.015 / np.asarray(spec["derived"]["grasp_radii"]))
+    assert need == pytest.approx(float((end - arc).min()))
+    assert np.all(need < end) and need > max(half)
 
 
 @pytest.mark.parametrize("task_name", TASKS)
@@ -240,7 +243,7 @@ def test_the_lid_stays_where_it_is_left(envs):
 def test_openbox_success_needs_the_grasp_to_open_the_lid_and_let_go(envs):
     env = envs["openbox"]
     env.reset(options={"demo": 0})
-    need = load_task_spec("openbox")["success"]["min_open_angle_deg"][0]
+    need = load_task_spec("openbox")["success"]["min_open_angle_deg"]
     env.grasp.release(env.data, "opened")
     hinge = env.scene.qadr["lid_hinge"]
     env.data.qpos[hinge] = np.radians(need + 2.0)
@@ -326,20 +329,16 @@ def test_glass_success_needs_it_standing_upright_on_the_shelf_and_the_tray_untou
         mujoco.mj_forward(env.model, env.data)
         ok, info = env.scene.success(env.data, env.grasp)
         assert ok is expected, (name, info)
-    # Put back upright: a tray knocked 2 cm at some step fails it for good.
+    # Put back upright: a tray nudged 1.5 cm at some step still passes (within the 2 cm bound),
+    # one knocked 3 cm fails it for good.
     set_free_pose(env.model, env.data, glass, standing, upright)
     _release_record(env, 0.02, 0.005)
     mujoco.mj_forward(env.model, env.data)
     assert env.scene.success(env.data, env.grasp)[0] is True
-    tray, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
-    quat = env.data.xquat[tray].copy()
-    set_free_pose(env.model, env.data, tray, start + [0.0, 0.02, 0.0], quat)
-    mujoco.mj_forward(env.model, env.data)
-    env.scene.track(env.data, env.grasp)
-    set_free_pose(env.model, env.data, tray, start, quat)
-    mujoco.mj_forward(env.model, env.data)
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.0, 0.015, 0.0]) is True
     ok, info = env.scene.success(env.data, env.grasp)
-    assert ok is False and info["tray_in_place"] is False
+    assert ok is True and info["tray_in_place"] is True
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.0, 0.03, 0.0]) is False
 
 
 def test_wineglass_tray_and_shelf_are_what_the_demos_derive():
@@ -385,15 +384,22 @@ def test_pan_success_needs_it_flat_on_the_stove_bottom_down_and_the_rack_untouch
         assert ok is expected, (name, info)
     set_free_pose(env.model, env.data, pan, flat, down)
     _release_record(env, 0.03, 0.005)
-    rack, start = env.scene.tray_id, env.scene.tray_watch.start.copy()
-    quat = env.data.xquat[rack].copy()
-    set_free_pose(env.model, env.data, rack, start + [0.02, 0.0, 0.0], quat)
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.015, 0.0, 0.0]) is True
+    assert _knocked(env, env.scene.tray_id, env.scene.tray_watch, [0.03, 0.0, 0.0]) is False
+    assert env.scene.success(env.data, env.grasp)[1]["rack_in_place"] is False
+
+
+def _knocked(env, body, watch, shift):
+    """Moves the rack / tray `body` by `shift` (m) for one tracked step, puts it back, and
+    returns the scene's verdict (the largest shift at any step is what counts)."""
+    start = watch.start.copy()
+    quat = env.data.xquat[body].copy()
+    set_free_pose(env.model, env.data, body, start + np.asarray(shift), quat)
     mujoco.mj_forward(env.model, env.data)
     env.scene.track(env.data, env.grasp)
-    set_free_pose(env.model, env.data, rack, start, quat)
+    set_free_pose(env.model, env.data, body, start, quat)
     mujoco.mj_forward(env.model, env.data)
-    ok, info = env.scene.success(env.data, env.grasp)
-    assert ok is False and info["rack_in_place"] is False
+    return env.scene.success(env.data, env.grasp)[0]
 
 
 def test_pan2stove_rack_and_stove_are_what_the_demos_derive():
@@ -687,7 +693,7 @@ def test_plate_success_fails_once_the_rack_was_knocked(envs):
     assert info["max_rack_shift"] == pytest.approx(0.03)
     assert _failed(info) == ["rack_shift"]
     shift = info["checks"][0]
-    assert shift["value"] == pytest.approx(0.03) and shift["bound"] == 0.01
+    assert shift["value"] == pytest.approx(0.03) and shift["bound"] == 0.02
 
 
 def test_pouring_success_counts_beans_inside_spilled_and_where_they_were_poured(envs):

@@ -22,6 +22,6 @@ def test_bench_sim_json(capsys):
 
 
 def test_targets():
-    assert target_for("clfd/Pouring-v2") == 30.0
-    assert target_for("clfd/MatFolding-v2") == target_for("clfd/Scoop-v2") == 30.0
+    assert target_for("clfd/Pouring-v3") == 30.0
+    assert target_for("clfd/MatFolding-v3") == target_for("clfd/Scoop-v3") == 30.0
     assert target_for("clfd/LASA-Angle-v3") == 50.0

@@ -177,7 +177,7 @@ def test_monitor_state_roundtrip():
 
 # ----------------------------------------------------------------------------- in the envs
 def test_goal_pose_from_the_first_step_is_a_reflex():
-    env = gym.make("clfd/BottleShelving-v2")
+    env = gym.make("clfd/BottleShelving-v3")
     base = env.unwrapped
     goal = base.trajectory_to_actions(base.demo_trajectory(0))[-1]
     obs, _ = env.reset(options={"demo": 0})
@@ -196,7 +196,7 @@ def test_goal_pose_from_the_first_step_is_a_reflex():
     env.close()
 
 
-@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v2", "clfd/HelloWorld-h-v3"])
+@pytest.mark.parametrize("env_id", ["clfd/BottleShelving-v3", "clfd/HelloWorld-h-v3"])
 def test_demo_replay_has_no_failure(env_id):
     env = gym.make(env_id)
     result = rollout(env, env.unwrapped.demo_trajectory(0), demo=0)

@@ -5,15 +5,15 @@ writing envs `-v3` today):
 
 | id | task | entry point |
 |---|---|---|
-| `clfd/BoxOpening-v2` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
-| `clfd/BottleShelving-v2` | RoboTasks `bottle2shelf` | same |
-| `clfd/PlateStacking-v2` | RoboTasks `platestandingtolying` | same |
-| `clfd/Pouring-v2` | RoboTasks `pouring` | same |
-| `clfd/WineGlass-v2` | RoboTasks9 `wineglass` | same |
-| `clfd/PanToStove-v2` | RoboTasks9 `pan2stove` | same |
-| `clfd/ObstacleRotate-v2` | RoboTasks9 `obstaclerotate` | same |
-| `clfd/MatFolding-v2` | RoboTasks9 `matfolding` | same |
-| `clfd/Scoop-v2` | RoboTasks9 `scoop` | same |
+| `clfd/BoxOpening-v3` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
+| `clfd/BottleShelving-v3` | RoboTasks `bottle2shelf` | same |
+| `clfd/PlateStacking-v3` | RoboTasks `platestandingtolying` | same |
+| `clfd/Pouring-v3` | RoboTasks `pouring` | same |
+| `clfd/WineGlass-v3` | RoboTasks9 `wineglass` | same |
+| `clfd/PanToStove-v3` | RoboTasks9 `pan2stove` | same |
+| `clfd/ObstacleRotate-v3` | RoboTasks9 `obstaclerotate` | same |
+| `clfd/MatFolding-v3` | RoboTasks9 `matfolding` | same |
+| `clfd/Scoop-v3` | RoboTasks9 `scoop` | same |
 | `clfd/HelloWorld-<letter>-v3` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
 | `clfd/HelloWorld-v3` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
 | `clfd/LASA-<Shape>-v3` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
@@ -59,7 +59,7 @@ WRITING_MODULE = "clfd_bench.envs.writing"
 #: Version of each family of envs; a behaviour change bumps the version of what it changes
 #: (and adds a line to the env class's Version History). Gymnasium then refuses the old id
 #: with a message naming the new one.
-FAMILY_VERSIONS: dict[str, int] = {"robotasks": 2, "letters": 3, "text": 3, "lasa": 3}
+FAMILY_VERSIONS: dict[str, int] = {"robotasks": 3, "letters": 3, "text": 3, "lasa": 3}
 #: Versions of single envs that moved on without their family, e.g. {"Pouring": 2}.
 ENV_VERSIONS: dict[str, int] = {}
 _VALID_NAME = re.compile(r"^[A-Za-z0-9_]+$")

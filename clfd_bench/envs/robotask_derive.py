@@ -90,6 +90,12 @@ POSITION_MARGIN = 0.015
 #: the lid's angle by up to 4 deg at the demos' smallest grasp radius (0.21 m), + 6 deg.
 TURN_MARGIN_DEG = 10.0
 
+#: How far (m) a rack or tray a prop is taken out of may move before it counts as knocked: the
+#: 1.5 cm position margin + 5 mm, the distance a placed prop may be off too (`PLACE_RADIUS`).
+#: Argued in `_knock_argument`: the rack's walls / pegs stand 1.5 cm clear of the demos' prop,
+#: so a good execution that far off the demos' path touches them and pushes the rack up to that.
+KNOCK_SHIFT = POSITION_MARGIN + 0.005
+
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
 #: The cup's axis (its z) along minus the hand's x axis: a -90 deg turn about the hand's y.
 CUP_IN_GRASP = [float(np.sqrt(0.5)), 0.0, -float(np.sqrt(0.5)), 0.0]
@@ -145,7 +151,7 @@ DESIGN: dict[str, dict[str, Any]] = {
                   "rack_base_thickness": 0.005,
                   "rack_fraction": 0.2},
         "success": {"max_tilt_deg": 25.0, "min_height": 0.0, "max_height": 0.03,
-                    "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
+                    "max_rack_shift": KNOCK_SHIFT, "max_rack_tilt_deg": 10.0},
         "camera": {"distance": 1.25, "azimuth": 140.0, "elevation": -24.0},
     },
     "wineglass": {
@@ -157,7 +163,7 @@ DESIGN: dict[str, dict[str, Any]] = {
         "scene": {"shelf_half_size": [0.1, 0.1], "clearance": POSITION_MARGIN, **TRAY,
                   "stand_margin": 0.02},
         "success": {"max_tilt_deg": 10.0, "min_height": -0.005, "max_height": 0.01,
-                    "max_tray_shift": 0.01, "max_tray_tilt_deg": 10.0},
+                    "max_tray_shift": KNOCK_SHIFT, "max_tray_tilt_deg": 10.0},
         "camera": {"distance": 1.2, "azimuth": 150.0, "elevation": -22.0},
     },
     "pan2stove": {
@@ -167,7 +173,7 @@ DESIGN: dict[str, dict[str, Any]] = {
                   "prop_pos": [0.0, 0.0, 0.0], "prop_quat": IDENTITY},
         "scene": {"stove_half_size": [0.15, 0.15], "clearance": POSITION_MARGIN, **TRAY},
         "success": {"max_tilt_deg": 15.0, "min_height": -0.005, "max_height": 0.01,
-                    "max_rack_shift": 0.01, "max_rack_tilt_deg": 10.0},
+                    "max_rack_shift": KNOCK_SHIFT, "max_rack_tilt_deg": 10.0},
         "camera": {"distance": 1.3, "azimuth": 150.0, "elevation": -24.0},
     },
     "obstaclerotate": {
@@ -232,18 +238,14 @@ DESIGN: dict[str, dict[str, Any]] = {
 _REPLAYED = "in every must-succeed replay of `clfd-bench replay --perturb all` (2026-12-05)"
 
 
-def _place_radius_argument(prop: str, spread: str, drift: str, size: str) -> str:
-    return (f"observer: let go where the demos let go. When the gripper opens, the {prop} must "
-            "be within this horizontal distance (m) of where demo j lets it go ([scene] "
-            "place_centre[j]). Design: the 1.5 cm position margin + 5 mm for the prop's swing "
-            f"as the fingers open. Why an observer signs it: {spread}; {_REPLAYED} the prop is "
-            f"let go at most 0.85 cm from demo j's point, the 5 cm drift {drift}; {size}")
-
-
 def _knock_argument(what: str, replayed: str, hit: str, size: str) -> str:
     return (f"observer: the {what} is not knocked. It may move at most this far (m) from where "
-            f"it was put, at any step. Design. Why an observer signs it: {replayed}; "
-            f"executions that run into it {hit}; {size}")
+            "it was put, at any step. Design: the 1.5 cm position margin + 5 mm (the distance "
+            "a placed prop may be off too). The walls stand 1.5 cm clear of where the demos "
+            "move the prop, so a good execution up to 1.5 cm off the demos' path may touch "
+            "them and push the rack that far; what an observer sees as a knock is the rack "
+            f"shoved out of place or tipped. Why an observer signs it: {replayed}; executions "
+            f"that run into it {hit}; {size}")
 
 
 #: The observer's argument for every design constant of a success criterion (issue 38): why an
@@ -262,10 +264,6 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "end 4.8 deg (stop-early) to 101 deg short of min_open_angle_deg"),
     }},
     "bottle2shelf": {"success": {
-        "place_radius": _place_radius_argument(
-            "bottle's centre", "the demos let the bottle go within 0.9 cm of each other",
-            "2.1-5 cm", "2 cm is 0.7 of the bottle's 2.8 cm radius: seen from above, a bottle "
-            "let go at the bound still overlaps demo j's"),
         "max_tilt_deg": (
             "observer: lying on the shelf. The bottle's axis at most this far (deg) from "
             "horizontal at the end. Design. Why an observer signs it: on the flat board the "
@@ -283,11 +281,6 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "else, and below the 7 cm of a standing bottle"),
     }},
     "platestandingtolying": {"success": {
-        "place_radius": _place_radius_argument(
-            "plate's centre", "the nearest other demo lets the plate go at most 1.75 cm from "
-            "where demo j does (but the demos span 5.7 cm: a plate laid flat 2-5.7 cm from "
-            "demo j's point, where another demo lays it, fails; stricter than the demos' own "
-            "spread)", "2.4-5 cm", "2 cm is 0.3 of the plate's 7 cm radius"),
         "max_tilt_deg": (
             "observer: lying on the platform. The plate's face at most this far (deg) from "
             "horizontal at the end. Design. Why an observer signs it: lying on the flat "
@@ -303,10 +296,11 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "something else, and below the 7 cm of a plate standing on its rim"),
         "max_rack_shift": _knock_argument(
             "dish rack", f"{_REPLAYED} the rack moves at most 0.2 mm (settling)",
-            "(shortcut, rush-wait) move it 7-24 cm", "1 cm is 7 % of the 13 x 14.5 cm rack. "
-            "Where an observer would not sign it: learned executions (the RoboTasks fast grid) "
-            "bump the rack 1.2-2.8 cm while laying the plate flat on the platform, and the "
-            "closing frame shows the rack in place (only the video shows the bump)"),
+            "(shortcut, rush-wait) move it 7-24 cm", "2 cm is 15 % of the 13 x 14.5 cm rack; "
+            "learned executions (the RoboTasks fast grid) that bump it 1.2-1.9 cm while "
+            "laying the plate flat leave it in place in the closing frame (FT after task 2, "
+            "demo 2: 1.23 cm) and pass; from 2.3 cm it is pushed aside and they fail "
+            "(docs/execution.md, 'Learned executions nearest the bounds')"),
         "max_rack_tilt_deg": (
             "observer: the rack is not tipped. It may tilt at most this far (deg) at any step. "
             f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
@@ -314,11 +308,6 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "it tilt it 10-90 deg"),
     }},
     "wineglass": {"success": {
-        "place_radius": _place_radius_argument(
-            "glass's foot", "the demos let the glass go within 1.8 cm of each other (the "
-            "nearest other demo at most 0.7 cm away)", "0.9-5 cm (the near ones fail anyway: "
-            "the glass pressed into the shelf slips out)", "2 cm is 0.6 of the foot's 3.5 cm "
-            "radius"),
         "max_tilt_deg": (
             "observer: standing upright. The glass's axis at most this far (deg) from "
             "vertical at the end. Design. Why an observer signs it: standing on its foot on "
@@ -335,19 +324,15 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             f"{_REPLAYED}); 1 cm up, the foot rests on something else"),
         "max_tray_shift": _knock_argument(
             "drying tray", f"{_REPLAYED} the tray moves at most 0.1 mm (settling)",
-            "(shortcut, rush-wait) move it 6.8-11 cm", "1 cm is 4 % of the 25 x 13 cm tray; "
-            "the nearest must-fail rollout moved it 1.03 cm (mirror, which also hits the tray's "
-            "wall)"),
+            "(shortcut, rush-wait) move it 6.8-11 cm", "2 cm is 8 % of the 25 x 13 cm tray; "
+            "the nearest must-fail rollout moved it 1.03 cm (mirror), and fails because it "
+            "hits the tray's wall"),
         "max_tray_tilt_deg": (
             "observer: the tray is not tipped. It may tilt at most this far (deg) at any step. "
             f"Design. Why an observer signs it: it stays level ({_REPLAYED} 0.0 deg); 10 deg "
             "lifts one side of its 13 cm base 2.3 cm off the stand"),
     }},
     "pan2stove": {"success": {
-        "place_radius": _place_radius_argument(
-            "pan's bottom centre", "the demos let the pan go within 2.5 cm of each other (the "
-            "nearest other demo at most 1.4 cm away)", "1.7-78 cm", "2 cm is 0.25 of the "
-            "bottom's 8 cm radius"),
         "max_tilt_deg": (
             "observer: lying flat, bottom down. The pan's bottom at most this far (deg) from "
             "facing down at the end. Design. Why an observer signs it: flat on the stove it is "
@@ -365,10 +350,9 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "pan rack", "the demos drag the pan 9-26 cm along the rack's floor and move the "
             "rack at most 0.7 mm; 1 cm noise and start offsets rub the pan along a wall and "
             "nudge it up to 8.4 mm (0.1 deg): the one knock bound a good execution comes "
-            "within 2 mm of", "(shortcut, rush-wait) move it 2.8-35 cm",
-            "1 cm is 3 % of the 26 x 39 cm rack: an observer sees a nudge rather than a "
-            "knock there, so a failure at 1-2 cm is the bound's, not the execution's (a 2 cm "
-            "bound would change no perturbation family's verdict)"),
+            "within 1.2 cm of", "(shortcut, rush-wait) move it 2.8-35 cm",
+            "2 cm is 5 % of the 26 x 39 cm rack: a nudge, not a knock, up to it; the mirror "
+            "rollouts that move it 1.3 cm fail by their collision"),
         "max_rack_tilt_deg": (
             "observer: the rack is not tipped. It may tilt at most this far (deg) at any step. "
             f"Design. Why an observer signs it: it stays level (0.1 deg at most {_REPLAYED}); "
@@ -376,9 +360,6 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "into it tilt it up to 32 deg"),
     }},
     "obstaclerotate": {"success": {
-        "place_radius": _place_radius_argument(
-            "box's centre", "the demos let the box go within 1.2 cm of each other",
-            "3-25 cm", "2 cm is 0.67 of the box's 3 cm half-width"),
         "max_tilt_deg": (
             "observer: lying on the shelf. The box's top face at most this far (deg) from "
             "level at the end. Design. Why an observer signs it: on the flat shelf it is level "
@@ -509,10 +490,11 @@ def _derive_openbox(task, design, starts) -> dict[str, Any]:
     slip = [["handle_radial", float(radial.min() - m), float(radial.max() + m)],
             ["handle_axial", float(axial.min() - m), float(axial.max() + m)],
             ["handle_turn", 0.0, float(np.radians(np.degrees(turn.max()) + mt))]]
-    # Demo j's end angle, less what the 1.5 cm position margin turns the lid by at its radius;
-    # never below the angle any demo has reached at half time.
+    # Open as far as another demo leaves the lid: the least of the demos' end angles, each less
+    # what the 1.5 cm position margin turns the lid by at that demo's radius; never below the
+    # angle any demo has reached at half time.
     margin_deg = np.degrees(POSITION_MARGIN / fit.radii)
-    need = np.maximum(ang[:, -1] - margin_deg, ang[:, half].max() + 1.0)
+    need = float(max((ang[:, -1] - margin_deg).min(), ang[:, half].max() + 1.0))
     return {
         "scene": {"hinge_pos": fit.point, "hinge_yaw_deg": float(np.degrees(fit.yaw))},
         "grasp": {"slip_joints": slip},
@@ -536,34 +518,71 @@ def _derive_openbox(task, design, starts) -> dict[str, Any]:
                 "relative to the lid at each sample (scene_fit.grip_slips; [derived] "
                 "edge_*); bound = the demos' min / max, widened by 1.5 cm (turn: by 10 deg)")},
             "success": {"min_open_angle_deg": (
-                "per demo j: the lid angle the grasp must have opened the lid to while holding "
-                "it. Procedure: demo j's final grasp angle ([derived] grasp_angle_end_deg) less "
-                "the angle 1.5 cm of arc make at its grasp radius ([derived] grasp_radii), at "
-                "least 1 deg more than any demo has reached at half time "
-                "(grasp_angle_half_deg, max)")},
+                "the lid angle the grasp must have opened the lid to while holding it: as far "
+                "as another demo opens it. Procedure: each demo's final grasp angle ([derived] "
+                "grasp_angle_end_deg) less the angle 1.5 cm of arc make at its grasp radius "
+                "([derived] grasp_radii); the least of them over the demos, at least 1 deg "
+                "more than any demo has reached at half time (grasp_angle_half_deg, max). A "
+                "must-fail execution that opens the lid that far is within the demos' own "
+                "spread: `clfd-bench replay` counts such a drift n/a "
+                "(clfd_bench.execution.replay.within_demo_spread)")},
         },
     }
 
 
-#: Radius (m) around where demo j lets the prop go within which an execution must let it go:
-#: the 1.5 cm position margin + 5 mm for the prop's swing while the gripper opens.
+#: The least radius (m) around where demo j lets the prop go within which an execution may let
+#: it go: the 1.5 cm position margin + 5 mm for the prop's swing while the gripper opens. The
+#: radius itself is derived (`_place_bounds`): at least this, or as far as two demos' release
+#: points lie apart.
 PLACE_RADIUS = POSITION_MARGIN + 0.005
 
 
-def _place_bounds(lows: np.ndarray, coms: np.ndarray, top: float) -> dict[str, Any]:
+def _largest_gap(points: np.ndarray) -> float:
+    """The largest distance between two of `points` [N, k]."""
+    points = np.asarray(points, dtype=float)
+    return float(np.linalg.norm(points[:, None] - points[None], axis=-1).max())
+
+
+def _release_points(task, doc: dict[str, Any]) -> np.ndarray:
+    """[N, 2] where each demo, replayed in the scene of the provisional spec `doc`, lets its
+    prop go (the prop's centre (x, y) when the gripper opens; the scene's `release_point`)."""
+    _, recs = _replay_demos(task, doc, records=True)
+    missing = [j for j, r in enumerate(recs) if r.get("release_point") is None]
+    if missing:
+        raise RuntimeError(f"{doc['task']['name']}: demos {missing} never let the prop go when "
+                           "replayed; the scene cannot derive its place radius (check the "
+                           "scene's support and grasp)")
+    return np.array([r["release_point"] for r in recs], dtype=float)
+
+
+def _place_bounds(lows: np.ndarray, coms: np.ndarray, top: float,
+                  released: np.ndarray) -> dict[str, Any]:
     """Release-height and place bounds from the held prop at the demos' end poses (lowest
-    points [N], centres [N, 3])."""
+    points [N], centres [N, 3]) and where the demos, replayed, let it go ([N, 2]:
+    `_release_points`)."""
     drop = lows - top
+    spread = _largest_gap(released)
     return {
         "success": {"max_release_height": float(drop.max() + POSITION_MARGIN),
-                    "place_radius": PLACE_RADIUS},
+                    "place_radius": float(max(PLACE_RADIUS, spread))},
         "place_centre": coms[:, :2],
-        "derived": {"release_height_demos": drop},
+        "derived": {"release_height_demos": drop, "release_point_demos": released,
+                    "release_spread": spread},
         "comments": {
             "max_release_height": (
                 "the prop's lowest point may be at most this high above the support's top when "
                 "the gripper opens. Procedure: the held prop at each demo's last pose "
                 "([derived] release_height_demos), max + 1.5 cm"),
+            "place_radius": (
+                "when the gripper opens, the prop must be within this horizontal distance (m) "
+                "of where demo j lets it go ([scene] place_centre[j]): let go as far from demo "
+                "j's point as another demo lets it go, and no further. Procedure: the demos "
+                "replayed in this scene, where each lets the prop go ([derived] "
+                "release_point_demos); the largest distance between two of them ([derived] "
+                "release_spread), at least 2 cm (the 1.5 cm position margin + 5 mm for the "
+                "prop's swing as the fingers open). A must-fail execution that lets go within "
+                "it is within the demos' own spread: `clfd-bench replay` counts such a drift "
+                "n/a (clfd_bench.execution.replay.within_demo_spread)"),
         },
     }
 
@@ -604,7 +623,8 @@ def _derive_bottle(task, design, starts) -> dict[str, Any]:
     top, gaps = _lower_until_clear(task, _doc("bottle2shelf", design, scene, {}, starts),
                                    "bottle", "shelf_top", ("shelf_board", "shelf_support"),
                                    d["clearance"])
-    place = _place_bounds(lows, coms, top)
+    released = _release_points(task, _doc("bottle2shelf", design, scene, {}, starts))
+    place = _place_bounds(lows, coms, top, released)
     return {
         "scene": scene,
         "success": place["success"],
@@ -643,8 +663,7 @@ def _derive_plate(task, design, starts) -> dict[str, Any]:
                                               starts),
                                    "plate", "platform_top", ("platform_top", "platform_support"),
                                    d["clearance"])
-    place = _place_bounds(lows_end[:, -1], coms_end[:, -1], top)
-    coms_end, lows_end = coms_end[:, -1], lows_end.min(1)
+    end_lows, coms_end, lows_end = lows_end[:, -1], coms_end[:, -1], lows_end.min(1)
     model, _ = _task_model("platestandingtolying")
     block_half = model.geom_size[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM,
                                                    "rack_peg1")]
@@ -655,12 +674,15 @@ def _derive_plate(task, design, starts) -> dict[str, Any]:
     by_lo = extent[0] - d["block_clearance"] - block_half[1]
     by_hi = extent[1] + d["block_clearance"] + block_half[1]
     offsets = [[-bx, by_lo], [bx, by_lo], [-bx, by_hi], [bx, by_hi]]
+    scene = {"table_z": table_z, "block_offsets": offsets, "block_height": block_height,
+             "rack_base_thickness": d["rack_base_thickness"],
+             "platform_top": [float(centre[0]), float(centre[1]), top],
+             "platform_half_size": d["platform_half_size"], "platform_yaw_deg": 0.0,
+             "place_centre": coms_end[:, :2]}
+    released = _release_points(task, _doc("platestandingtolying", design, scene, {}, starts))
+    place = _place_bounds(end_lows, coms_end, top, released)
     return {
-        "scene": {"table_z": table_z, "block_offsets": offsets, "block_height": block_height,
-                  "rack_base_thickness": d["rack_base_thickness"],
-                  "platform_top": [float(centre[0]), float(centre[1]), top],
-                  "platform_half_size": d["platform_half_size"], "platform_yaw_deg": 0.0,
-                  "place_centre": place["place_centre"]},
+        "scene": scene,
         "success": place["success"],
         "derived": {"start_lowest_z": rack_lows, "plate_end_lowest_z": lows_end,
                     "plate_end_centre": coms_end, "platform_path_clearance": gaps,
@@ -760,7 +782,8 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
         jitter.append([float(np.linalg.norm(poured_at(r) - c))
                        for r, c in zip(recs, pour, strict=True)])
     jitter = np.asarray(jitter)
-    radius = max(POSITION_MARGIN, d["jitter_factor"] * float(jitter.max()))
+    pour_spread = _largest_gap(pour)
+    radius = max(POSITION_MARGIN, d["jitter_factor"] * float(jitter.max()), pour_spread)
     return {
         "scene": scene,
         "success": {"min_fraction": float((inside.min() - 1) / n),
@@ -770,7 +793,7 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
                     "bean_landing_spread_quantiles": np.quantile(spread, [0.5, 0.9, 0.95, 1.0]),
                     "beans_landed": ok.sum(1), "beans_inside_demos": inside,
                     "beans_spilled_demos": spilled, "pour_jitter_slower": jitter[0],
-                    "pour_jitter_faster": jitter[1]},
+                    "pour_jitter_faster": jitter[1], "pour_spread": pour_spread},
         "comments": {
             "scene": {"container_floor": (
                 "the container's centre on the table. Procedure: the demos replayed over a flat "
@@ -793,10 +816,16 @@ def _derive_pouring(task, design, starts) -> dict[str, Any]:
                     "beans_spilled_demos): one bean more than the worst demo"),
                 "pour_radius": (
                     "the cup must be emptied within this distance (m) of where demo j empties "
-                    "it ([scene] pour_centre). Procedure: the 1.5 cm position margin, or 1.3 x "
-                    "the largest shift the demos replayed 2x slower and 1.5x faster (same path, "
-                    "the beans leave a little earlier or later) show ([derived] pour_jitter_*) "
-                    "if that is larger")},
+                    "it ([scene] pour_centre): as far from it as another demo empties the cup, "
+                    "and no further. Procedure: the largest distance between two demos' pour "
+                    "points ([derived] pour_spread); at least the 1.5 cm position margin and "
+                    "1.3 x the largest shift the demos replayed 2x slower and 1.5x faster (same "
+                    "path, the beans leave a little earlier or later) show ([derived] "
+                    "pour_jitter_*). What an observer judges is the beans' counts below; this "
+                    "bound only rejects a cup emptied farther from demo j's point than any demo "
+                    "empties it. A must-fail execution within it is within the demos' own "
+                    "spread: `clfd-bench replay` counts such a drift n/a "
+                    "(clfd_bench.execution.replay.within_demo_spread)")},
         },
     }
 
@@ -921,7 +950,8 @@ def _derive_glass(task, design, starts) -> dict[str, Any]:
     top, gaps = _lower_until_clear(task, _doc("wineglass", design, scene, {}, starts), "glass",
                                    "shelf_top", ("shelf_board", "shelf_support"),
                                    d["clearance"])
-    place = _place_bounds(lows, feet, top)
+    released = _release_points(task, _doc("wineglass", design, scene, {}, starts))
+    place = _place_bounds(lows, feet, top, released)
     return {
         "scene": scene,
         "success": place["success"],
@@ -972,7 +1002,8 @@ def _derive_pan(task, design, starts) -> dict[str, Any]:
              "place_centre": bottoms[:, :2]}
     top, gaps = _lower_until_clear(task, _doc("pan2stove", design, scene, {}, starts), "pan",
                                    "stove_top", ("stove_top", "stove_support"), d["clearance"])
-    place = _place_bounds(lows, bottoms, top)
+    released = _release_points(task, _doc("pan2stove", design, scene, {}, starts))
+    place = _place_bounds(lows, bottoms, top, released)
     return {
         "scene": scene,
         "success": place["success"],
@@ -1080,7 +1111,8 @@ def _derive_obstacle(task, design, starts) -> dict[str, Any]:
             scene["obstacle_xy"] = [float(box[k]) for k in ("x0", "x1", "y0", "y1")]
     else:
         raise RuntimeError("obstaclerotate: the obstacle did not clear the demos in 12 steps")
-    place = _place_bounds(lows, coms, top)
+    released = _release_points(task, _doc("obstaclerotate", design, scene, turn, starts))
+    place = _place_bounds(lows, coms, top, released)
     return {
         "scene": scene,
         "success": {**place["success"], **turn},

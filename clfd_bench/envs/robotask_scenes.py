@@ -496,7 +496,7 @@ class _PlaceScene(Scene):
         return data.xipos[self.prop_id]
 
     def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
-        self.record = {"release_height": None, "release_offset": None}
+        self.record = {"release_height": None, "release_offset": None, "release_point": None}
 
     def on_release(self, data: mujoco.MjData, grasp: Grasp) -> None:
         mujoco.mj_kinematics(self.model, data)
@@ -504,8 +504,10 @@ class _PlaceScene(Scene):
         self.record["release_height"] = lowest_point(self.model, data, self.prop) - float(top)
         centre = np.asarray(self.scene["place_centre"], dtype=float).reshape(-1, 2)
         centre = self._demo_row(centre)
-        self.record["release_offset"] = float(np.linalg.norm(self.prop_centre(data)[:2]
-                                                             - centre))
+        point = self.prop_centre(data)[:2].copy()
+        # where it is let go (x, y): the derivation's demos' release spread is measured on it
+        self.record["release_point"] = point
+        self.record["release_offset"] = float(np.linalg.norm(point - centre))
 
     def _placed(self, data: mujoco.MjData, grasp: Grasp) -> tuple[list[Check], dict[str, Any]]:
         """The release's checks (let go by opening the gripper, not held now; low; near demo

@@ -1,6 +1,6 @@
-"""The RoboTasks environments: `clfd/BoxOpening-v2`, `clfd/BottleShelving-v2`,
-`clfd/PlateStacking-v2`, `clfd/Pouring-v2` and RoboTasks9's `clfd/WineGlass-v2`,
-`clfd/PanToStove-v2`, `clfd/ObstacleRotate-v2`, `clfd/MatFolding-v2` (one class,
+"""The RoboTasks environments: `clfd/BoxOpening-v3`, `clfd/BottleShelving-v3`,
+`clfd/PlateStacking-v3`, `clfd/Pouring-v3` and RoboTasks9's `clfd/WineGlass-v3`,
+`clfd/PanToStove-v3`, `clfd/ObstacleRotate-v3`, `clfd/MatFolding-v3` (one class,
 `RoboTaskEnv(task=...)`)."""
 
 from __future__ import annotations
@@ -158,45 +158,45 @@ where the demos put the props lower), the props stand on it. The four RoboTasks 
 of the follow-up's RoboTasks9 its five new tasks, `wineglass`, `pan2stove`, `obstaclerotate`,
 `matfolding` and `scoop`:
 
-- `openbox` (`clfd/BoxOpening-v2`): the gripper pinches the front edge of a storage box's lid
+- `openbox` (`clfd/BoxOpening-v3`): the gripper pinches the front edge of a storage box's lid
   and swings it open. The hinge axis is fitted to the arcs the nine demos' grasp points trace.
   The lid ({lid_mass} kg) turns on friction hinges ({hinge_friction} Nm): it stays wherever it
   is left, it only opens as far as the gripper takes it.
-- `bottle2shelf` (`clfd/BottleShelving-v2`): a full 250 ml bottle ({bottle_mass} kg), held
+- `bottle2shelf` (`clfd/BottleShelving-v3`): a full 250 ml bottle ({bottle_mass} kg), held
   upright by its neck just above the table, is laid on a shelf whose top is 1.5 cm under the
   lowest point the bottle reaches at the demos' ends (and lower where a demo passes closer).
-- `platestandingtolying` (`clfd/PlateStacking-v2`): a 14 cm plate ({plate_mass} kg) standing in
+- `platestandingtolying` (`clfd/PlateStacking-v3`): a 14 cm plate ({plate_mass} kg) standing in
   a dish rack (a base and four pegs, 1.5 cm clear of where the demos move the plate's rim) is
   lifted out and laid on a platform 1.5 cm under the plate's lowest point near the demos' ends.
-- `pouring` (`clfd/Pouring-v2`): a cup of {n_beans} beans (free spheres of {bean_diameter_cm}
+- `pouring` (`clfd/Pouring-v3`): a cup of {n_beans} beans (free spheres of {bean_diameter_cm}
   cm, {bean_mass_g} g: hazelnut-sized; real coffee beans would take hundreds of bodies) is
   tipped over a container centred where the demos' beans land.
-- `wineglass` (`clfd/WineGlass-v2`, RoboTasks9): a 20 cm wine glass ({glass_mass} kg) lying on
+- `wineglass` (`clfd/WineGlass-v3`, RoboTasks9): a 20 cm wine glass ({glass_mass} kg) lying on
   its side in a drying tray is taken by the stem, lifted out, turned upright and stood on its
   foot on a shelf. The tray's walls stand 1.5 cm clear of where the demos move the glass below
   the walls' top ({tray_wall_cm:.1f} cm): the demos lift the glass out before they carry and
   turn it. What the task is was inferred from the poses alone (the object's axis is horizontal
   at the start and vertical at the end); see docs/design/robotasks9.
-- `pan2stove` (`clfd/PanToStove-v2`, RoboTasks9): a 16 cm pan ({pan_mass} kg) standing on its
+- `pan2stove` (`clfd/PanToStove-v3`, RoboTasks9): a 16 cm pan ({pan_mass} kg) standing on its
   rim in a low-walled pan rack is taken by the handle, pulled back along the rack (the demos
   drag it 9-26 cm before they lift it), carried over, turned flat and set down on a stove
   whose top is 1.5 cm under the pan's lowest point at the demos' ends. The rack's walls
   ({rack_wall_cm:.1f} cm) stand 1.5 cm clear of where the demos move the pan below their top.
   A rim grasp would fit the poses too; the handle grasp and a light pan were chosen (a 70 N
   friction grip on a flat handle does not hold a heavy pan; docs/design/robotasks9).
-- `obstaclerotate` (`clfd/ObstacleRotate-v2`, RoboTasks9): a 20 cm box ({box_mass} kg) is carried
+- `obstaclerotate` (`clfd/ObstacleRotate-v3`, RoboTasks9): a 20 cm box ({box_mass} kg) is carried
   low from the table at the robot's right around an obstacle (a block standing where every
   demo's path bends, {obstacle_cm} cm tall, shrunk until every demo's box and arm keep 1.5 cm
   clear of it), turned {min_turn:.0f}+ deg about the vertical on the way and back, and put down
   on a shelf at the robot's left. Nothing in the scene forces the turn (no gate that only a
   turned box passes was found in the data): the criterion asks for it, as the task's name does.
-- `matfolding` (`clfd/MatFolding-v2`, RoboTasks9): a 60 x 30 cm mat ({mat_mass:g} kg; its far
+- `matfolding` (`clfd/MatFolding-v3`, RoboTasks9): a 60 x 30 cm mat ({mat_mass:g} kg; its far
   half one rigid plate, its near half {n_strips} strips of {strip_cm:g} cm hinged to each other)
   lies on the table; the gripper pinches the middle of its near edge (which may turn between the
   pads up to {pinch_turn_deg:.0f} deg, the demos' largest + 10), lifts it in an arc and lays it
   on the far edge: the mat folded in half. The demos themselves drag the mat 8-14 cm and turn it
   9-23 deg on the table while they fold it (lifting the edge pulls the mat towards it).
-- `scoop` (`clfd/Scoop-v2`, RoboTasks9): a scoop ({scoop_mass_g:.0f} g; an 8 x 7 x 4 cm bowl
+- `scoop` (`clfd/Scoop-v3`, RoboTasks9): a scoop ({scoop_mass_g:.0f} g; an 8 x 7 x 4 cm bowl
   25 cm out along its handle, held across the pads) is drawn through a bin of beans on a stand
   and lifted out nearly level, holding a scoopful. The beans' level is {scoop_dip_cm:.1f} cm over
   the highest of the demos' lowest lip points; the bin's walls and floor stand 1.5 cm clear of
@@ -248,9 +248,9 @@ Sparse: 1.0 on a step where the task's success predicate holds, else 0.0. The pr
 the whole episode so far, not only the current state (thresholds in `tasks/<task>.toml
 [success]`):
 
-- openbox: while holding the lid, the grasp opened it to at least demo j's own final angle less
-  what 1.5 cm of arc turn it ({open_min:.1f}-{open_max:.1f} deg over the demos); then the gripper
-  opened (the lid never slipped out); the lid is still open (at most
+- openbox: while holding the lid, the grasp opened it as far as another demo opens it (the least
+  of the demos' final angles, each less what 1.5 cm of arc turn it: {open_min:.1f} deg); then
+  the gripper opened (the lid never slipped out); the lid is still open (at most
   {stay_tol:g} deg below that angle).
 - bottle2shelf: the bottle was held until the gripper opened; at that moment its lowest point
   was at most {bottle_drop_cm:.1f} cm above the shelf (the demos let it go
@@ -262,8 +262,9 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   gripper opened, at most {plate_drop_cm:.1f} cm above the platform and within
   {plate_radius_cm:.1f} cm of where demo j lets it go; now it lies on the platform (normal
   within {plate_tilt:g} deg of vertical).
-- pouring: the cup never slipped; it was emptied where demo j empties it (the cup's mouth, on
-  average as the beans left it, within {pour_radius_cm:.1f} cm of where demo j's was); at least
+- pouring: the cup never slipped; it was emptied where a demo empties it (the cup's mouth, on
+  average as the beans left it, within {pour_radius_cm:.1f} cm of where demo j's was: as far as
+  two demos' pour points lie apart); at least
   {min_fraction_pct:.0f} % of the beans are in the container and at most {max_spill_pct:.0f} %
   ever landed outside it (on the table, the container's rim, ...).
 - wineglass: the drying tray was never moved more than {tray_shift_cm:g} cm or tilted more than
@@ -281,6 +282,9 @@ the whole episode so far, not only the current state (thresholds in `tasks/<task
   and, when let go, was back within {end_turn:.1f} deg of its start heading; it was let go at
   most {box_drop_cm:.1f} cm above the shelf and within {box_radius_cm:.1f} cm of where demo j
   lets it go; now it lies on the shelf.
+- The place radii (bottle2shelf to obstaclerotate) are the demos' own spread: the largest
+  distance between two demos' release points (at least 2 cm); a prop let go within it is let go
+  where another demo lets it go.
 - matfolding: judged relative to the mat itself (a mat lifted by one edge slides towards the
   hand: the drag is no fault). The mat's edge was held until the gripper opened, at that
   moment within {mat_place_radius_cm:.1f} cm of where demo j lets it go in the room; now the
@@ -306,7 +310,7 @@ reflex, unreachable target, collision of the arm, tracking error or physics blow
 
 ## Arguments
 
-`gymnasium.make("clfd/BoxOpening-v2", render_mode=None, physics_dt=None, ik_iterations=1,
+`gymnasium.make("clfd/BoxOpening-v3", render_mode=None, physics_dt=None, ik_iterations=1,
 width=640, height=480, spec=None, limits="panda")`; `task` is fixed by the id. `physics_dt`
 None takes the task's (`[task] physics_dt`: 2 ms). `spec` replaces the task spec
 read from `tasks/<task>.toml` (a dict of the same layout; used when deriving the specs).
@@ -333,12 +337,17 @@ scene).
 
 ## Version History
 
-- 2026-12-05 (issue 38, team decisions; the ids stay v2): `clfd/MatFolding-v2` judges the mat
-  relative to itself (folded, let go where demo j lets go in the room, not dragged further than
-  the demos drag it plus their spread), no longer where on the mat the edge lands nor how the
-  mat is turned on the table; `clfd/Scoop-v2` no longer judges where the scoop ends (3.5 cm).
+- v3 (2026-12-05, issue 38): every criterion constant derived from the demos or argued by an
+  observer. The place radii are the demos' own spread (the largest distance between two demos'
+  release points, at least 2 cm: PlateStacking 5.7 cm, PanToStove 2.5 cm); Pouring's pour
+  radius at least the demos' pour-point spread (4.1 cm); BoxOpening's lid angle the
+  least-opened demo's (92.8 deg) for every demo j; racks and trays may be nudged 2 cm.
+  MatFolding (team decision) judges the mat relative to itself (folded, let go where demo j
+  lets go in the room, not dragged further than the demos drag it plus their spread), no longer
+  where on the mat the edge lands nor how the mat is turned on the table; Scoop (team decision)
+  no longer judges where the scoop ends (3.5 cm). Every scene reports `info["checks"]`.
 - `clfd/WineGlass-v2`, `clfd/PanToStove-v2`, `clfd/ObstacleRotate-v2`, `clfd/MatFolding-v2`
-  and `clfd/Scoop-v2` are new (2026-12-04): they start at the family's version.
+  and `clfd/Scoop-v2` were new on 2026-12-04: they started at the family's version.
 - v2: physics steps of 2 ms (8 per control step) instead of v1's 4 ms, at which the arm's
   servos, at their torque limits while a held prop swings, lagged the commanded hand pose by up
   to 24 mm (PlateStacking) and 21 mm (Pouring) where finer steps give 1–4 mm.

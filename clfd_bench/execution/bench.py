@@ -17,10 +17,10 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
 #: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
 DEFAULT_ENVS = (
-    "clfd/HelloWorld-h-v3", "clfd/LASA-Angle-v3", "clfd/BoxOpening-v2",
-    "clfd/BottleShelving-v2", "clfd/PlateStacking-v2", "clfd/Pouring-v2",
-    "clfd/WineGlass-v2", "clfd/PanToStove-v2", "clfd/ObstacleRotate-v2",
-    "clfd/MatFolding-v2", "clfd/Scoop-v2",
+    "clfd/HelloWorld-h-v3", "clfd/LASA-Angle-v3", "clfd/BoxOpening-v3",
+    "clfd/BottleShelving-v3", "clfd/PlateStacking-v3", "clfd/Pouring-v3",
+    "clfd/WineGlass-v3", "clfd/PanToStove-v3", "clfd/ObstacleRotate-v3",
+    "clfd/MatFolding-v3", "clfd/Scoop-v3",
 )
 #: Speed targets (x real time) from the issue: 50x, 30x for the scenes of many bodies in
 #: contact (Pouring's and Scoop's beans; MatFolding's 13-body mat, docs/design/robotasks9

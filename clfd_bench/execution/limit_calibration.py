@@ -379,7 +379,7 @@ class Extreme:
 
     @property
     def where(self) -> str:
-        """e.g. "Pouring-v2 demo 7 faster" ("-" when no replay)."""
+        """e.g. "Pouring-v3 demo 7 faster" ("-" when no replay)."""
         if not self.env_id:
             return "-"
         return f"{self.env_id.removeprefix('clfd/')} demo {self.demo} {self.family}"
@@ -572,7 +572,7 @@ def measure(env_ids: Sequence[str] | None = None, families: Sequence[str] = FAMI
     rollout (`measure_rollout`).
 
     Args:
-        env_ids: gymnasium ids ("clfd/Pouring-v2", ...).
+        env_ids: gymnasium ids ("clfd/Pouring-v3", ...).
         families: replay families (`clfd_bench.execution.perturb.FAMILIES` names).
         demos: demo indices per env (None: all; indices an env does not have are skipped).
         progress: a tqdm bar (`clfd_bench.progress`, which also honours CLFD_NO_PROGRESS).

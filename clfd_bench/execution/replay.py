@@ -24,6 +24,15 @@ each such (task, family), the outcome that makes a variant n/a and the reason. A
 `shortcut` that folds the mat is another way of folding it, as a mirrored Pouring is another
 way of pouring; a Scoop `drift` is never a wrong trajectory, because nothing in that scene
 marks where demo j ends. `is_valid_alternative` decides it from the rollout's final info.
+
+The same holds for where an execution ends. Some scene bounds are the demos' own spread: a
+RoboTasks prop may be let go as far from demo j's release point as another demo lets it go
+(`release_offset`), the cup emptied as far from demo j's pour point as another demo empties it
+(`pour_offset`), the lid opened as far as the least-opened demo (`lid_opened`)
+(`clfd_bench.envs.robotask_derive`). A variant of a family that is wrong only by where it ends
+(`END_FAMILIES`: drift) whose rollout passes every such check (`SPREAD_CHECKS`) ends within the
+demos' spread: it is not a wrong trajectory and is counted "n/a" (`within_demo_spread`). Where
+it ends beyond that spread, the check it passes nowhere else fails it, and it counts.
 """
 
 from __future__ import annotations
@@ -44,9 +53,10 @@ from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
 from clfd_bench.metrics.trajectory import hausdorff
 
-__all__ = ["MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES", "VALID_ALTERNATIVES",
-           "ReplayRecord", "confusion_table", "families_for", "format_confusion", "is_distinct",
-           "is_valid_alternative", "replay", "replay_trajectory"]
+__all__ = ["END_FAMILIES", "MAX_FALSE_SUCCESS", "REST_TOLERANCE", "SHAPE_FAMILIES",
+           "SPREAD_CHECKS", "VALID_ALTERNATIVES", "ReplayRecord", "confusion_table",
+           "families_for", "format_confusion", "is_distinct", "is_valid_alternative", "replay",
+           "replay_trajectory", "within_demo_spread"]
 
 #: A must-fail family may succeed on at most this fraction of an env's demos.
 MAX_FALSE_SUCCESS = 0.05
@@ -55,6 +65,10 @@ SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
 #: A demo whose second half stays within (m, deg) of its pose at half time is at rest by then:
 #: its `stop-early` variant is not a wrong trajectory (see the module docstring).
 REST_TOLERANCE = (0.005, 2.0)
+#: Must-fail families that are wrong only by where they end (see the module docstring).
+END_FAMILIES = ("drift",)
+#: Scene checks (`info["checks"]` names) whose bound is the demos' own spread of where they end.
+SPREAD_CHECKS = ("release_offset", "pour_offset", "lid_opened")
 
 
 def _checks_passed(info: Mapping[str, Any], names: Sequence[str]) -> bool:
@@ -211,6 +225,17 @@ def is_valid_alternative(env: PandaEnv, family: str, info: Mapping[str, Any]) ->
     return rule is not None and bool(rule[0](info))
 
 
+def within_demo_spread(family: str, info: dict[str, Any]) -> bool:
+    """Whether a rollout of `family` ended within the demos' own spread, so that it is no wrong
+    trajectory: the family is wrong only by where it ends (`END_FAMILIES`) and the env's
+    `info["checks"]` hold at least one check of `SPREAD_CHECKS` and every one of them passed.
+    False for every other family and for an env that reports no such check."""
+    if family not in END_FAMILIES:
+        return False
+    spread = [c for c in info.get("checks") or () if c.get("name") in SPREAD_CHECKS]
+    return bool(spread) and all(bool(c["passed"]) for c in spread)
+
+
 def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo",
            settle_s: float = DEFAULT_SETTLE_S, env: gym.Env | None = None,
            **env_kwargs: Any) -> list[ReplayRecord]:
@@ -238,7 +263,8 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
             t0 = time.perf_counter()
             result = rollout(env, traj, demo=j, settle_s=settle_s)
             wall = time.perf_counter() - t0
-            if applicable and is_valid_alternative(base, family, result.info):
+            if applicable and (is_valid_alternative(base, family, result.info)
+                               or within_demo_spread(family, result.info)):
                 applicable = False
             err = result.tracking_error_pos
             records.append(ReplayRecord(
@@ -257,8 +283,8 @@ def replay(env_id: str, demos: Sequence[int] | None = None, family: str = "demo"
 def confusion_table(records: Iterable[ReplayRecord | dict[str, Any]]
                     ) -> dict[str, dict[str, dict[str, Any]]]:
     """{env: {family: {"n", "successes", "expect", "ok", "failure_kinds"}}} from replay
-    records (objects or their `to_json()` dicts), plus "not_applicable": variants of a shape
-    family that are no wrong trajectory (`is_distinct`, `is_valid_alternative`), left out of
+    records (objects or their `to_json()` dicts), plus "not_applicable": variants that are no
+    wrong trajectory (`is_distinct`, `is_valid_alternative`, `within_demo_spread`), left out of
     "n". `ok` is False where a
     must-succeed family failed on any demo or a must-fail family succeeded on more than
     `MAX_FALSE_SUCCESS` of its applicable demos."""
@@ -309,6 +335,8 @@ def format_confusion(table: dict[str, dict[str, dict[str, Any]]]) -> str:
                  "already at rest at half time (its second half moves < 5 mm, < 2 deg), and "
                  "a task's valid alternatives (a MatFolding shortcut that folds the mat, any "
                  "Scoop drift: nothing marks where a scoop ends; "
-                 "clfd_bench.execution.replay.VALID_ALTERNATIVES): no wrong trajectory, not "
+                 "clfd_bench.execution.replay.VALID_ALTERNATIVES), and drift variants whose "
+                 "rollout ends within the demos' own spread (every check of "
+                 + ", ".join(SPREAD_CHECKS) + " it reports passes): no wrong trajectory, not "
                  "counted.")
     return "\n".join(lines)

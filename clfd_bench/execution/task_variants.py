@@ -224,14 +224,14 @@ def shortened(frac: float) -> Variant:
 
 #: env -> [(variant, expect, build)]; expect: "succeed", "fail".
 VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
-    "clfd/WineGlass-v2": [
+    "clfd/WineGlass-v3": [
         ("lift 8 cm, then a straight line, turning on it", "succeed", lift_then_line(0.08)),
         ("turned the other way round (bowl down on the way)", "fail", turned_the_long_way),
         ("turned 30 deg too far", "fail", turned_extra(30.0)),
         ("stopped at 90 % (upright, over the shelf)", "either", stop_at(0.9)),
         ("stopped at 75 %", "either", stop_at(0.75)),
     ],
-    "clfd/PanToStove-v2": [
+    "clfd/PanToStove-v3": [
         ("pull back 12 cm, rise, carry above the stove, descend", "succeed", waypoints(
             lambda p0, p1: [p0 + [0.12, 0.0, 0.0], np.r_[p0[:2] + [0.12, 0.0], p1[2] + 0.1],
                             p1 + [0.0, 0.0, 0.1]])),
@@ -243,13 +243,13 @@ VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
         ("stopped at 90 %", "either", stop_at(0.9)),
         ("stopped at 75 %", "either", stop_at(0.75)),
     ],
-    "clfd/ObstacleRotate-v2": [
+    "clfd/ObstacleRotate-v3": [
         ("the turn about the vertical mirrored", "fail", yaw_mirrored),
         ("turned as the demo, never back", "fail", yaw_kept),
         ("carried unturned, turned and back over the shelf", "fail", yaw_at_the_end),
         ("straight across, over the obstacle's top", "either", over_the_top(0.28)),
     ],
-    "clfd/MatFolding-v2": [
+    "clfd/MatFolding-v3": [
         ("the arc 2 cm higher", "succeed", bumped(0.02)),
         ("the arc 5 cm higher", "succeed", bumped(0.05)),
         ("laid down at 80 % of the way (short of the far edge)", "fail", shortened(0.8)),
@@ -257,7 +257,7 @@ VARIANTS: dict[str, list[tuple[str, str, Variant]]] = {
         ("stopped at 90 %", "either", stop_at(0.9)),
         ("stopped at 75 %", "either", stop_at(0.75)),
     ],
-    "clfd/Scoop-v2": [
+    "clfd/Scoop-v3": [
         ("from the lowest point straight up 8 cm, then across to the end", "succeed",
          up_then_across(0.08)),
         ("carried 12 cm over the beans", "fail", bumped(0.12)),

@@ -60,7 +60,7 @@ error), not as a joint velocity one. Elbow limits (libfranka's Cartesian-with-el
 not checked: the benchmark commands `hand` poses only.
 
 **How the bounds were measured** (tracking, collision, filters; numbers next to the
-constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v2`, `BottleShelving`,
+constants): every demo j of every env (RoboTasks `clfd/BoxOpening-v3`, `BottleShelving`,
 `PlateStacking`, `Pouring`: 9 demos each; `clfd/HelloWorld-<l>-v2`: 8 per letter;
 `clfd/LASA-<Shape>-v2`: 7 per shape), each as recorded and as the `slower` (2×) and `faster`
 (1.5×) replay families (`clfd_bench.execution.replay.replay_trajectory`), run with
@@ -69,7 +69,7 @@ infinite, recording per step the command, the hand's pose error and the robot-sc
 forces: 822 rollouts, all successful. Re-run with `python eval/measure_limits.py` (the procedure:
 `clfd_bench.execution.limit_calibration`; ~20 min on 2 cores): it prints the measured worst
 values next to these constants and exits 1 when they no longer reproduce them. Envs added since
-(`clfd/WineGlass-v2`, `clfd/PanToStove-v2`, `clfd/ObstacleRotate-v2`, `clfd/MatFolding-v2`)
+(`clfd/WineGlass-v3`, `clfd/PanToStove-v3`, `clfd/ObstacleRotate-v3`, `clfd/MatFolding-v3`)
 are not in that measurement; each was checked against these bounds
 (`limit_calibration.ADDED_AFTER_CALIBRATION` says what was found: WineGlass's good replays
 reach 0.81 x the tracking bound and ObstacleRotate's 0.61 x, within it but closer than the 2x
