@@ -13,8 +13,14 @@
 # A second copy started while one runs exits at once (a lock in OUT). Environment: the
 # caller's (CLFD_DATA_DIR, MENAGERIE_ROOT, an activated venv with clfd-bench installed);
 # this checkout's clfd_bench is put first on PYTHONPATH. CLFD_FULL_STAGES="1 2" runs only
-# those stages; CLFD_FULL_METHODS overrides the methods (default the paper's seven);
+# those stages; CLFD_FULL_METHODS overrides the methods (default the paper's seven, the three
+# issue 38 names first: hn,chn,rep,sg,ft,si,mas);
 # CLFD_FULL_PROFILE another profile (default full; smoke checks this script in minutes).
+# Finished runs are kept in the repository without their checkpoints (eval/full_keep.py),
+# because a run outlives the machine it started on: before the first stage the kept runs
+# missing under OUT are restored (so they are skipped), and after every stage the finished
+# ones not kept yet are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
+# "none" keeps nothing). Commit what it adds there.
 set -uo pipefail
 # Everything runs inside main, called on the last line: bash parses the whole file before the
 # first run starts, so editing this file while it runs cannot change what it does.
@@ -27,14 +33,22 @@ stage() {  # stage N DATASET SEEDS
     nice -n 10 python -m clfd_bench.cli.main leaderboard --dataset "$dataset" \
     --profile "$profile" --methods "$methods" --seeds "$seeds" --workers 1 --out "$out/$dataset"
   echo "[full_runs] $(date -u +%FT%TZ) stage $n: exit $?"
+  keep save
+}
+
+keep() {  # keep save|restore
+  [ "$keep_dir" = none ] && return 0
+  if [ "$1" = save ]; then python "$repo/eval/full_keep.py" save "$out" "$keep_dir"
+  else python "$repo/eval/full_keep.py" restore "$keep_dir" "$out"; fi
 }
 
 main() {
   repo="$(cd "$(dirname "$0")/.." && pwd)"
   out="${1:-$repo/results/full}"
-  methods="${CLFD_FULL_METHODS:-sg,ft,rep,si,mas,hn,chn}"
+  methods="${CLFD_FULL_METHODS:-hn,chn,rep,sg,ft,si,mas}"
   stages="${CLFD_FULL_STAGES:-1 2 3 4 5 6}"
   profile="${CLFD_FULL_PROFILE:-full}"
+  keep_dir="${CLFD_FULL_KEEP:-$repo/docs/studies/full-runs}"
   export PYTHONPATH="$repo${PYTHONPATH:+:$PYTHONPATH}"
   export CLFD_NO_PROGRESS=1 MUJOCO_GL="${MUJOCO_GL:-egl}"
 
@@ -46,7 +60,9 @@ main() {
   fi
 
   echo "[full_runs] $(date -u +%FT%TZ) start, profile $profile: $repo" \
-    "($(git -C "$repo" rev-parse --short HEAD 2>/dev/null)), out $out"
+    "($(git -C "$repo" rev-parse --short HEAD 2>/dev/null)), out $out, kept runs $keep_dir"
+  keep restore || { echo "[full_runs] the kept runs cannot be restored; not starting" >&2
+                    return 2; }
   stage 1 helloworld 0
   stage 2 robotasks 0
   stage 3 helloworld 0,1,2

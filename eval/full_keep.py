@@ -1,0 +1,126 @@
+"""Keeps the `full` profile's finished runs in the repository, and puts them back.
+
+A `full` run (issue 38) takes one to several hours of CPU, longer than the machines this
+project's sessions run on live, and a run directory outside the repository is lost with its
+machine. So every finished run of ``eval/full_runs.sh`` is kept here as one deterministic
+archive (:func:`clfd_bench.pretrained.make_archive`) of its directory **without its
+checkpoint** (``checkpoint.pt`` and ``checkpoints/``: 9-40 MB a run, and a finished run
+needs no resume): ``results.json``, every ``predictions/after_task_{i}.npz``,
+``sim_cache.json`` and ``train.log``. That is all a leaderboard reads, and all that
+re-executing the predictions under another simulator needs (``clfd-bench leaderboard``
+re-executes a run whose executions are stale, without training). What a kept run cannot do
+is continue training or be rendered from its model: videos execute the predictions, so they
+still work.
+
+    python eval/full_keep.py save results/full docs/studies/full-runs
+    python eval/full_keep.py restore docs/studies/full-runs results/full
+
+``save`` archives every run under OUT (``OUT/<dataset>/runs/<dataset>/<method>/<run>``, as
+``eval/full_runs.sh`` lays them out) that is done (every task trained and executed by the
+current simulator) and not kept yet, as ``KEEP/<the same path>.tar.xz``, and records its
+sha256 and size in ``KEEP/MANIFEST.json``.
+``restore`` extracts every kept run whose directory is missing under OUT, after checking its
+sha256; it never replaces a run directory that exists. ``eval/full_runs.sh`` restores before
+it starts, so the leaderboard skips the kept runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+from clfd_bench.execution.fingerprint import sim_fingerprint
+from clfd_bench.io import atomic_write_json, sha256_file
+from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
+from clfd_bench.runs import find_runs
+
+MANIFEST = "MANIFEST.json"
+LEFT_OUT = ("checkpoint.pt", "checkpoints")
+
+
+def _manifest(keep: Path) -> dict:
+    path = keep / MANIFEST
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def save(out: Path, keep: Path) -> int:
+    """Archives the finished runs of ``out`` not kept yet; returns how many it archived."""
+    manifest, fingerprint, saved = _manifest(keep), sim_fingerprint(), 0
+    for run in find_runs(out):
+        key = run.path.relative_to(out).as_posix()
+        if key in manifest:
+            continue
+        results = run.read_results() or {}
+        tasks = int(results.get("tasks_done") or 0)
+        state = run.status(tasks, sim=True, fingerprint=fingerprint)
+        if state.state != "done" or tasks == 0:
+            print(f"  {key}: not kept ({state.reason or state.state})")
+            continue
+        archive = keep / f"{key}.tar.xz"
+        archive.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
+            staging = Path(tmp) / run.path.name
+            shutil.copytree(run.path, staging, ignore=shutil.ignore_patterns(*LEFT_OUT))
+            sha = make_archive(staging, archive)
+        manifest[key] = {"sha256": sha, "size": archive.stat().st_size,
+                         "tasks": tasks, "train_cpu_s": results.get("train_cpu_s"),
+                         "simulator": (results.get("sim") or {}).get("fingerprint")}
+        atomic_write_json(keep / MANIFEST, dict(sorted(manifest.items())))
+        saved += 1
+        print(f"  {key}: kept ({archive.stat().st_size / 1e6:.2f} MB)")
+    return saved
+
+
+def restore(keep: Path, out: Path) -> int:
+    """Extracts the kept runs missing under ``out``; returns how many it extracted."""
+    restored = 0
+    for key, entry in _manifest(keep).items():
+        target = out / key
+        if target.exists():
+            continue
+        archive = keep / f"{key}.tar.xz"
+        if not archive.is_file() or sha256_file(archive) != entry["sha256"]:
+            raise PretrainedError(f"{archive}: missing or not the archive {MANIFEST} "
+                                  "records; check it out again (git checkout -- "
+                                  f"{archive})")
+        bundle = Bundle(name=key, file=archive.name, sha256=entry["sha256"],
+                        description="a kept full run", dataset=key.split("/")[0],
+                        profile="full",
+                        methods=(), made_with_version="", size=int(entry["size"]))
+        extract_archive(archive, target, bundle)
+        restored += 1
+        print(f"  {key}: restored")
+    return restored
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    s = sub.add_parser("save", help="archive OUT's finished runs into KEEP")
+    s.add_argument("out", type=Path)
+    s.add_argument("keep", type=Path)
+    r = sub.add_parser("restore", help="extract KEEP's runs missing under OUT")
+    r.add_argument("keep", type=Path)
+    r.add_argument("out", type=Path)
+    args = parser.parse_args()
+    try:
+        if args.what == "save":
+            if not args.out.is_dir():
+                raise PretrainedError(f"{args.out}: no such folder (the OUT of "
+                                      "eval/full_runs.sh)")
+            args.keep.mkdir(parents=True, exist_ok=True)
+            print(f"full_keep: {save(args.out, args.keep)} run(s) archived into {args.keep}")
+        else:
+            print(f"full_keep: {restore(args.keep, args.out)} run(s) restored into {args.out}")
+    except PretrainedError as exc:
+        print(f"full_keep: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,87 @@
+"""eval/full_keep.py: the `full` runs outlive their machine as archives without checkpoints.
+A finished run is archived and restored file for file (its checkpoint left out) and counts as
+done again; an unfinished one is not kept; a tampered archive is refused and restores
+nothing; an existing run directory is never replaced."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from clfd_bench import pretrained
+from clfd_bench.pretrained import PretrainedError
+from clfd_bench.runs import RunDir, find_runs
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def keep_mod():
+    spec = importlib.util.spec_from_file_location("full_keep", ROOT / "eval" / "full_keep.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture()
+def out(tmp_path, keep_mod, monkeypatch) -> Path:
+    """OUT with two runs of the shipped bundle laid out as eval/full_runs.sh does: HN's (done
+    under the bundle's own simulator, which stands in for the current one) and SG's with
+    its results marked unfinished."""
+    bundle = pretrained.get("helloworld-fast", tmp_path / "bundle")
+    runs = {r.path.parent.name: r for r in find_runs(bundle)}
+    out = tmp_path / "out"
+    for method in ("hn", "sg"):
+        src = runs[method].path
+        shutil.copytree(src, out / "helloworld" / src.relative_to(bundle))
+    sg = RunDir(next(p for p in find_runs(out) if p.path.parent.name == "sg").path)
+    results = json.loads(sg.results_path.read_text())
+    results["complete"] = False
+    sg.results_path.write_text(json.dumps(results))
+    fingerprint = runs["hn"].read_results()["sim"]["fingerprint"]
+    monkeypatch.setattr(keep_mod, "sim_fingerprint", lambda: fingerprint)
+    return out
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes()
+            for p in folder.rglob("*") if p.is_file() and not p.name.startswith(".")}
+
+
+def test_finished_runs_come_back_without_their_checkpoint(out, keep_mod, tmp_path):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    assert keep_mod.save(out, keep) == 1  # HN's; SG's is unfinished
+    manifest = json.loads((keep / "MANIFEST.json").read_text())
+    (key,) = manifest
+    assert "/hn/" in key and key.startswith("helloworld/runs/helloworld/")
+    assert keep_mod.save(out, keep) == 0  # already kept
+
+    fresh = tmp_path / "fresh"
+    assert keep_mod.restore(keep, fresh) == 1
+    before, after = _files(out / key), _files(fresh / key)
+    assert "checkpoint.pt" in before and "checkpoint.pt" not in after
+    before.pop("checkpoint.pt")
+    assert after == before  # every other file, byte for byte
+    run = RunDir(fresh / key)
+    tasks = run.read_results()["tasks_done"]
+    assert tasks == 7
+    assert run.status(tasks, sim=True, fingerprint=keep_mod.sim_fingerprint()).state == "done"
+    assert keep_mod.restore(keep, fresh) == 0  # an existing run is left as it is
+
+
+def test_a_tampered_archive_restores_nothing(out, keep_mod, tmp_path):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    keep_mod.save(out, keep)
+    (key,) = json.loads((keep / "MANIFEST.json").read_text())
+    archive = keep / f"{key}.tar.xz"
+    archive.write_bytes(archive.read_bytes()[:-10])
+    fresh = tmp_path / "fresh"
+    with pytest.raises(PretrainedError, match="git checkout"):
+        keep_mod.restore(keep, fresh)
+    assert not (fresh / key).exists()
