@@ -288,7 +288,8 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "14 cm plate 5.9 cm: propped (on the rack, a finger), not lying; standing is 90 deg"),
         "min_height": (
             "observer: resting on the platform. The plate's centre must be at least this high "
-            "(m) above the platform's top at the end: below it, it has sunk into the board"),
+            "(m) above the platform's top at the end: below it, it has sunk into the board (a "
+            "physics failure)"),
         "max_height": (
             "the plate's centre at most this high (m) above the platform's top at the end. "
             "Design. Why an observer signs it: lying on the board its centre is half its 1 cm "
@@ -317,7 +318,7 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
         "min_height": (
             "observer: standing on the shelf. The foot's bottom at least this far (m) above "
             "the shelf's top at the end (negative: the contact's give; deeper, it has sunk "
-            "into the board)"),
+            "into the board: a physics failure)"),
         "max_height": (
             "the foot's bottom at most this high (m) above the shelf's top at the end. Design. "
             f"Why an observer signs it: standing on the board it touches it (-0.07 mm "
@@ -341,7 +342,8 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "go leave it 19-90 deg"),
         "min_height": (
             "observer: on the stove. The bottom's outer centre at least this far (m) above the "
-            "stove's top at the end (negative: the contact's give; deeper, it has sunk in)"),
+            "stove's top at the end (negative: the contact's give; deeper, it has sunk in: a "
+            "physics failure)"),
         "max_height": (
             "the bottom's outer centre at most this high (m) above the stove's top at the end. "
             f"Design. Why an observer signs it: flat on the stove it touches it (-0.07 mm "
@@ -367,7 +369,8 @@ OBSERVER: dict[str, dict[str, dict[str, str]]] = {
             "not lying"),
         "min_height": (
             "observer: on the shelf. The box's lowest point at least this far (m) above the "
-            "shelf's top at the end (negative: the contact's give; deeper, it has sunk in)"),
+            "shelf's top at the end (negative: the contact's give; deeper, it has sunk in: a "
+            "physics failure)"),
         "max_height": (
             "the box's lowest point at most this high (m) above the shelf's top at the end. "
             f"Design. Why an observer signs it: lying on the board it touches it (-0.07 mm "
@@ -1412,9 +1415,15 @@ def _derive_mat(task, design, starts) -> dict[str, Any]:
                     "6 cm further), so a valid path may drag it as much further as the demos' own "
                     "paths differ among themselves; more is a mat pulled across the table"),
                 "max_layer_height": (
-                    "design: the far plate lies at most this high above the table (its "
-                    "middle plane), a turned-over strip at most this high above the far "
-                    "plate's (its hinge; one layer on it is 3 mm up)")}},
+                    "observer: lying, not in the air. The far plate's middle plane at most "
+                    "this high (m) above the table, a turned-over strip's hinge at most this "
+                    "high above the far plate's. Design. Why an observer signs it: the mat is "
+                    "3 mm thick, so a strip folded onto the far half lies 3 mm up and one "
+                    "folded over another 6 mm; in every must-succeed replay (demo, 2x slower, "
+                    "1.5x faster, noise, start offset; 45 rollouts, 2026-12-06) each counted "
+                    "strip lies at most 6.0 mm up and the far plate at most 3.5 mm, while the "
+                    "upside-down strips a stop-early leaves over the far half arch 1.1-2.0 cm "
+                    "above it: in the air, not folded onto it")}},
     }
 
 
