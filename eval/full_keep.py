@@ -7,8 +7,8 @@ archive (:func:`clfd_bench.pretrained.make_archive`) of its directory **without 
 checkpoint** (``checkpoint.pt`` and ``checkpoints/``: 9-40 MB a run, and a finished run
 needs no resume): ``results.json``, every ``predictions/after_task_{i}.npz``,
 ``sim_cache.json`` and ``train.log``. That is all a leaderboard reads, and all that
-re-executing the predictions under another simulator needs (``clfd-bench leaderboard``
-re-executes a run whose executions are stale, without training). What a kept run cannot do
+re-executing the predictions under another simulator needs (``restore`` does it: see
+below). What a kept run cannot do
 is continue training or be rendered from its model: videos execute the predictions, so they
 still work.
 
@@ -20,8 +20,10 @@ still work.
 current simulator) and not kept yet, as ``KEEP/<the same path>.tar.xz``, and records its
 sha256 and size in ``KEEP/MANIFEST.json``.
 ``restore`` extracts every kept run whose directory is missing under OUT, after checking its
-sha256; it never replaces a run directory that exists. ``eval/full_runs.sh`` restores before
-it starts, so the leaderboard skips the kept runs.
+sha256 (it never replaces a run directory that exists), and executes again the predictions of
+a kept run that another simulator executed (``clfd-bench evaluate``'s step): without a
+checkpoint the grid could not resume such a run, it would train it from the start.
+``eval/full_runs.sh`` restores before it starts, so the leaderboard skips the kept runs.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from pathlib import Path
 from clfd_bench.execution.fingerprint import sim_fingerprint
 from clfd_bench.io import atomic_write_json, sha256_file
 from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
-from clfd_bench.runs import find_runs
+from clfd_bench.runs import RunDir, find_runs
 
 MANIFEST = "MANIFEST.json"
 LEFT_OUT = ("checkpoint.pt", "checkpoints")
@@ -75,12 +77,19 @@ def save(out: Path, keep: Path) -> int:
     return saved
 
 
-def restore(keep: Path, out: Path) -> int:
-    """Extracts the kept runs missing under ``out``; returns how many it extracted."""
+def restore(keep: Path, out: Path, refresh=None) -> int:
+    """Extracts the kept runs missing under ``out``, then executes again the predictions of
+    every kept run there that another simulator executed (``refresh``, default
+    :func:`clfd_bench.execution.evaluate.evaluate_run`): a kept run has no checkpoint, so the
+    grid, finding it stale, would train it again from the start. Returns how many it
+    extracted."""
+    if refresh is None:
+        from clfd_bench.execution.evaluate import evaluate_run as refresh
     restored = 0
     for key, entry in _manifest(keep).items():
         target = out / key
         if target.exists():
+            _refresh_if_stale(RunDir(target), key, refresh)
             continue
         archive = keep / f"{key}.tar.xz"
         if not archive.is_file() or sha256_file(archive) != entry["sha256"]:
@@ -94,7 +103,16 @@ def restore(keep: Path, out: Path) -> int:
         extract_archive(archive, target, bundle)
         restored += 1
         print(f"  {key}: restored")
+        _refresh_if_stale(RunDir(target), key, refresh)
     return restored
+
+
+def _refresh_if_stale(run: RunDir, key: str, refresh) -> None:
+    results = run.read_results() or {}
+    tasks = int(results.get("tasks_done") or 0)
+    if run.status(tasks, sim=True, fingerprint=sim_fingerprint()).state != "done":
+        print(f"  {key}: executed by another simulator; executing its predictions again")
+        refresh(run.path)
 
 
 def main() -> int:

@@ -1,7 +1,8 @@
 """eval/full_keep.py: the `full` runs outlive their machine as archives without checkpoints.
 A finished run is archived and restored file for file (its checkpoint left out) and counts as
 done again; an unfinished one is not kept; a tampered archive is refused and restores
-nothing; an existing run directory is never replaced."""
+nothing; an existing run directory is never replaced; a kept run another simulator executed
+is executed again on restore (without a checkpoint the grid would train it from the start)."""
 
 from __future__ import annotations
 
@@ -62,7 +63,7 @@ def test_finished_runs_come_back_without_their_checkpoint(out, keep_mod, tmp_pat
     assert keep_mod.save(out, keep) == 0  # already kept
 
     fresh = tmp_path / "fresh"
-    assert keep_mod.restore(keep, fresh) == 1
+    assert keep_mod.restore(keep, fresh, refresh=_no_refresh) == 1
     before, after = _files(out / key), _files(fresh / key)
     assert "checkpoint.pt" in before and "checkpoint.pt" not in after
     before.pop("checkpoint.pt")
@@ -71,7 +72,26 @@ def test_finished_runs_come_back_without_their_checkpoint(out, keep_mod, tmp_pat
     tasks = run.read_results()["tasks_done"]
     assert tasks == 7
     assert run.status(tasks, sim=True, fingerprint=keep_mod.sim_fingerprint()).state == "done"
-    assert keep_mod.restore(keep, fresh) == 0  # an existing run is left as it is
+    assert keep_mod.restore(keep, fresh, refresh=_no_refresh) == 0  # left as it is
+
+
+def _no_refresh(path):
+    raise AssertionError(f"{path} was executed by this simulator: nothing to execute again")
+
+
+def test_a_run_of_another_simulator_is_executed_again_not_trained(out, keep_mod, tmp_path,
+                                                                  monkeypatch):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    keep_mod.save(out, keep)
+    (key,) = json.loads((keep / "MANIFEST.json").read_text())
+    monkeypatch.setattr(keep_mod, "sim_fingerprint", lambda: "another-simulator")
+    refreshed = []
+    fresh = tmp_path / "fresh"
+    assert keep_mod.restore(keep, fresh, refresh=refreshed.append) == 1
+    assert refreshed == [fresh / key]
+    keep_mod.restore(keep, fresh, refresh=refreshed.append)  # still stale: again, not skipped
+    assert refreshed == [fresh / key, fresh / key]
 
 
 def test_a_tampered_archive_restores_nothing(out, keep_mod, tmp_path):
@@ -83,5 +103,5 @@ def test_a_tampered_archive_restores_nothing(out, keep_mod, tmp_path):
     archive.write_bytes(archive.read_bytes()[:-10])
     fresh = tmp_path / "fresh"
     with pytest.raises(PretrainedError, match="git checkout"):
-        keep_mod.restore(keep, fresh)
+        keep_mod.restore(keep, fresh, refresh=_no_refresh)
     assert not (fresh / key).exists()
