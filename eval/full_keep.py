@@ -56,9 +56,7 @@ def save(out: Path, keep: Path) -> int:
         key = run.path.relative_to(out).as_posix()
         if key in manifest:
             continue
-        results = run.read_results() or {}
-        tasks = int(results.get("tasks_done") or 0)
-        state = run.status(tasks, sim=True, fingerprint=fingerprint)
+        results, tasks, state = _state(run, fingerprint)
         if state.state != "done" or tasks == 0:
             print(f"  {key}: not kept ({state.reason or state.state})")
             continue
@@ -107,10 +105,16 @@ def restore(keep: Path, out: Path, refresh=None) -> int:
     return restored
 
 
-def _refresh_if_stale(run: RunDir, key: str, refresh) -> None:
+def _state(run: RunDir, fingerprint: str):
+    """``(results, tasks learned, status)`` of a run, judged as done only when every task it
+    learned was executed by the simulator ``fingerprint``."""
     results = run.read_results() or {}
     tasks = int(results.get("tasks_done") or 0)
-    if run.status(tasks, sim=True, fingerprint=sim_fingerprint()).state != "done":
+    return results, tasks, run.status(tasks, sim=True, fingerprint=fingerprint)
+
+
+def _refresh_if_stale(run: RunDir, key: str, refresh) -> None:
+    if _state(run, sim_fingerprint())[2].state != "done":
         print(f"  {key}: executed by another simulator; executing its predictions again")
         refresh(run.path)
 
