@@ -20,6 +20,8 @@ SECTIONS = ("success", "tolerances")
 SIGNED = re.compile(r"Procedure:|DERIVED|\[derived\]|Why an\s+observer signs it|"
                     r"the paper's own|a\s+physics failure")
 KEY = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.*)$")
+#: a table header, not a row of a multi-line array (which also starts with "[").
+HEADER = re.compile(r"^\[[A-Za-z_][A-Za-z0-9_.]*\]$")
 
 
 def signatures(path: Path) -> dict[str, str]:
@@ -31,7 +33,7 @@ def signatures(path: Path) -> dict[str, str]:
     section, block, group = "", [], ""
     for line in path.read_text(encoding="utf-8").splitlines():
         stripped = line.strip()
-        if stripped.startswith("["):
+        if HEADER.match(stripped):
             section, block, group = stripped.strip("[]"), [], ""
         elif stripped.startswith("#"):
             block.append(stripped.lstrip("# "))
@@ -43,7 +45,7 @@ def signatures(path: Path) -> dict[str, str]:
             value, _, inline = m.group(2).partition("#")
             if re.fullmatch(r"\s*-?[0-9.e+-]+\s*|\s*\"paper\"\s*", value):
                 out[f"{section}.{m.group(1)}"] = f"{group} {inline}"
-        elif stripped.endswith("[") or stripped.startswith(("]", "[")):
+        else:  # a key of another table, or a row of a multi-line array
             block = []
     return out
 
