@@ -4,7 +4,8 @@
 #   bash run.sh test   # set up, then run the test suite
 # Set-up: a virtual environment in .venv (or $CLFD_VENV) with torch 2.13.0 and the project
 # installed in editable mode; reused on later runs. Offline machines: set CLFD_DATA_DIR and
-# MENAGERIE_ROOT first (README, "Offline use"); ../shared is used when it is beside the repo.
+# MENAGERIE_ROOT once, for this command (README, "Offline use"); ../shared is used when it is
+# beside the repo. Either is then remembered in the venv (clfd_bench/settings.py).
 set -euo pipefail
 cd "$(dirname "$0")"
 what="${1:-}"
@@ -32,12 +33,22 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   touch "$stamp"
 fi
 
-# Offline copies beside the checkout (CI, this project's machines).
-if [ -z "${CLFD_DATA_DIR:-}" ] && [ -d ../shared/datasets ]; then
+# Where the data and the robot model are: an exported CLFD_DATA_DIR / MENAGERIE_ROOT, else the
+# venv's settings file, else the offline copies beside the checkout (CI, this project's
+# machines). What is found is recorded in the venv's settings file (clfd_bench/settings.py), so
+# every later shell that uses the venv finds them without exports.
+settings="$venv/clfd-bench.toml"
+if [ -z "${CLFD_DATA_DIR:-}" ] && [ -d ../shared/datasets ] \
+    && ! grep -q '^CLFD_DATA_DIR' "$settings" 2>/dev/null; then
   export CLFD_DATA_DIR="$(cd ../shared/datasets && pwd)"
 fi
-if [ -z "${MENAGERIE_ROOT:-}" ] && [ -d ../shared/menagerie ]; then
+if [ -z "${MENAGERIE_ROOT:-}" ] && [ -d ../shared/menagerie ] \
+    && ! grep -q '^MENAGERIE_ROOT' "$settings" 2>/dev/null; then
   export MENAGERIE_ROOT="$(cd ../shared/menagerie && pwd)"
+fi
+if [ -n "${CLFD_DATA_DIR:-}${MENAGERIE_ROOT:-}" ]; then
+  clfd-bench settings ${CLFD_DATA_DIR:+"CLFD_DATA_DIR=$CLFD_DATA_DIR"} \
+    ${MENAGERIE_ROOT:+"MENAGERIE_ROOT=$MENAGERIE_ROOT"} >&2
 fi
 export MUJOCO_GL="${MUJOCO_GL:-egl}"
 

@@ -4,6 +4,9 @@ Importing the package registers the Gymnasium environments (namespace ``clfd``),
 ``gymnasium.make("clfd/PlateStacking-v3")`` works after ``import clfd_bench``. Registration
 uses string entry points: nothing heavy (MuJoCo, torch) is imported until an env is made.
 
+Importing it also applies the installation's settings file (:mod:`clfd_bench.settings`):
+``CLFD_DATA_DIR`` and ``MENAGERIE_ROOT`` are found without exports.
+
 ``clfd_bench.score_predictions(...)`` scores predictions made elsewhere into a run directory
 (:func:`clfd_bench.harness.external.score_predictions`, imported on first use).
 """
@@ -13,10 +16,14 @@ from __future__ import annotations
 from typing import Any
 
 from clfd_bench.kernels import pin_thread_invariant_kernels
+from clfd_bench.settings import apply_settings
 from clfd_bench.version import __version__
 
 # Before any torch computation: MKL's results independent of the thread count (kernels.py).
 pin_thread_invariant_kernels()
+# CLFD_DATA_DIR and MENAGERIE_ROOT from the venv's settings file where not exported
+# (settings.py; `bash run.sh setup` writes it).
+apply_settings()
 
 __all__ = ["__version__", "score_predictions"]
 

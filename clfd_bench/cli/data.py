@@ -56,6 +56,11 @@ def _run(args: argparse.Namespace) -> int:
     if unknown_dataset("data", names or []):
         return 2
     rows = summarise(names, args.order)
+    if not args.json:
+        from clfd_bench.settings import setting_sources
+
+        for key, (value, where) in setting_sources().items():
+            print(f"{key}: {value} ({where})" if value else f"{key}: not set")
     if args.json:
         print(json.dumps(rows, indent=1))
     else:

@@ -76,6 +76,9 @@ def _run(args: argparse.Namespace) -> int:
         print(f"clfd-bench evaluate: error: {run.results_path} not found: RUN_DIR must be a "
               "directory written by `clfd-bench train`", file=sys.stderr)
         return 2
+    from clfd_bench.harness.validate import check_robot_model
+
+    check_robot_model()  # one line naming MENAGERIE_ROOT, before the run is locked
     try:
         with run.lock(f"clfd-bench evaluate {args.run_dir}"):
             if args.rerun:

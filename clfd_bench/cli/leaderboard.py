@@ -38,6 +38,10 @@ def _run(args: argparse.Namespace) -> int:
     except (KeyError, MethodClassError) as exc:
         print(f"clfd-bench leaderboard: error: {exc.args[0]}", file=sys.stderr)
         return 2
+    if not args.no_sim:
+        from clfd_bench.harness.validate import check_robot_model
+
+        check_robot_model()  # before any training: one line naming MENAGERIE_ROOT
     result = run_leaderboard(
         dataset=args.dataset,
         methods=args.methods,

@@ -14,7 +14,7 @@ __all__ = ["build_parser", "main"]
 
 COMMANDS: tuple[str, ...] = (
     "data", "train", "evaluate", "score", "leaderboard", "paper", "replay", "video", "site",
-    "pretrained", "gallery",
+    "pretrained", "gallery", "settings",
 )  # fmt: skip
 """Modules of :mod:`clfd_bench.cli` that add a top-level subcommand."""
 

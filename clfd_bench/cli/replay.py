@@ -74,11 +74,13 @@ def _run(args: argparse.Namespace) -> int:
         format_confusion,
         replay,
     )
+    from clfd_bench.harness.validate import check_robot_model
     from clfd_bench.io import atomic_write_json
     from clfd_bench.progress import progress
 
     env_ids = _resolve_envs(args.env)
     demos = _parse_demos(args.demos)
+    check_robot_model()  # one line naming MENAGERIE_ROOT, not one error per env
     wanted = _families(args.perturb)
     rows: list[dict[str, Any]] = []
     errors: dict[str, str] = {}

@@ -32,6 +32,10 @@ def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.external import score_predictions
     from clfd_bench.runs import RunLockedError
 
+    if not args.no_sim:
+        from clfd_bench.harness.validate import check_robot_model
+
+        check_robot_model()  # one line naming MENAGERIE_ROOT, before anything is written
     try:
         results = score_predictions(
             args.predictions, args.dataset, order=args.order, node=args.node, tasks=args.tasks,

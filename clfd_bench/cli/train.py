@@ -116,6 +116,7 @@ def _run(args: argparse.Namespace) -> int:
         check_dataset,
         check_env_count,
         check_out_dir,
+        check_robot_model,
     )
     from clfd_bench.methods import MethodClassError, UnknownMethodError
 
@@ -142,6 +143,8 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     check_out_dir(args.out)
     check_dataset(config.dataset, config.order)
+    if not args.no_sim:
+        check_robot_model()
     from clfd_bench.procs import die_with_parent_from_env
     from clfd_bench.runs import RunDir, RunLockedError
 

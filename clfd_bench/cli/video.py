@@ -44,6 +44,9 @@ def _run(args: argparse.Namespace) -> int:
         print("clfd-bench video: error: --compare shows one task: give --task (an index or a "
               "name)", file=sys.stderr)
         return 2
+    from clfd_bench.harness.validate import check_robot_model
+
+    check_robot_model()  # one line naming MENAGERIE_ROOT
     try:
         style = VideoStyle(width=args.size[0], height=args.size[1], fps=args.fps,
                            shadows=args.shadows)

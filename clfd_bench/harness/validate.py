@@ -25,6 +25,7 @@ __all__ = [
     "check_dataset",
     "check_env_count",
     "check_out_dir",
+    "check_robot_model",
 ]
 
 
@@ -126,6 +127,37 @@ def check_dataset(name: str, order: int = 0) -> None:
     from clfd_bench.data import load_dataset
 
     load_dataset(name, order=order)
+
+
+def check_robot_model() -> None:
+    """The Franka Panda model (MuJoCo Menagerie's ``franka_emika_panda``) can be found, so that
+    a command that executes in simulation fails before any training, not after it. Without
+    ``MENAGERIE_ROOT`` the model is downloaded on first use (pinned, checksummed, by the
+    ``mujoco_menagerie`` package).
+
+    Raises:
+        InputError: one line naming ``MENAGERIE_ROOT`` and the fix.
+    """
+    from clfd_bench.sim.robot import MENAGERIE_NAME, menagerie_dir
+
+    root = os.environ.get("MENAGERIE_ROOT")
+    try:
+        folder = Path(menagerie_dir())
+    except Exception as exc:  # the package's own errors (not found, download failed)
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if root:
+            raise InputError(
+                f"MENAGERIE_ROOT={root} holds no {MENAGERIE_NAME}/ robot model ({reason}); "
+                "point MENAGERIE_ROOT at a MuJoCo Menagerie copy (the folder that holds "
+                f"{MENAGERIE_NAME}/), or unset it to download the model") from None
+        raise InputError(
+            f"the robot model ({MENAGERIE_NAME}, MuJoCo Menagerie) is not available and "
+            f"cannot be downloaded ({reason}); set MENAGERIE_ROOT to a local MuJoCo Menagerie "
+            "copy (`bash run.sh setup` records ../shared/menagerie when it is beside the "
+            "checkout), or pass --no-sim to train without executing") from None
+    if not (folder / "scene.xml").is_file():
+        raise InputError(f"the robot model folder {folder} has no scene.xml; point "
+                         "MENAGERIE_ROOT at a complete MuJoCo Menagerie copy")
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
