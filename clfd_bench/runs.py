@@ -55,6 +55,7 @@ __all__ = [
     "LOCK_FILE",
     "LOG_FILE",
     "PREDICTIONS_DIR",
+    "RUN_FILES",
     "RESULTS_FILE",
     "SIM_KEYS",
     "RunDir",
@@ -73,6 +74,9 @@ CACHE_FILE = "sim_cache.json"
 LOG_FILE = "train.log"
 FAILED_FILE = "failed.json"
 LOCK_FILE = ".lock"
+#: What a run directory may hold (the lock last): a folder with other entries is not a run.
+RUN_FILES = (RESULTS_FILE, CHECKPOINT_FILE, CHECKPOINTS_DIR, PREDICTIONS_DIR, CACHE_FILE,
+             LOG_FILE, FAILED_FILE, LOCK_FILE)
 #: The keys of ``results.json`` that execution in simulation writes.
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")
 _CACHE_SCHEMA = 3  # 2: summaries carry failure_kind; 3: checks and stopped_early

@@ -32,6 +32,17 @@ STUDY_COMMANDS: tuple[str, ...] = (
 """Modules of :mod:`clfd_bench.cli` that add a ``clfd-bench study <name>`` subcommand."""
 
 
+_RESUME: dict[str, str] = {
+    "train": "resumes after the last finished task",
+    "leaderboard": "skips the finished runs and resumes the others after their last finished "
+                   "task",
+    "paper": "skips the finished runs and resumes the others after their last finished task",
+    "study": "skips the finished runs and resumes the others after their last finished task",
+    "evaluate": "executes only the rollouts not yet cached",
+}
+"""What running an interrupted command again does (printed on Ctrl-C)."""
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (``prog: error: ...; see --help``), exit 2."""
 
@@ -89,7 +100,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(func(args) or 0)
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        hint = _RESUME.get(args.command)
+        print(f"clfd-bench {args.command}: interrupted"
+              + (f"; finished work is kept: run the same command again, it {hint}" if hint
+                 else ""), file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()

@@ -22,7 +22,7 @@ _GROUPS = ("all", "writing", "robotasks")
 
 
 def _resolve_envs(names: list[str]) -> list[str]:
-    from clfd_bench.envs.registration import ROBOTASKS_ENVS, env_specs
+    from clfd_bench.envs.registration import NAMESPACE, ROBOTASKS_ENVS, env_specs
 
     specs = env_specs()
     out: list[str] = []
@@ -35,9 +35,19 @@ def _resolve_envs(names: list[str]) -> list[str]:
             out += [i for i in specs if i.split("/")[1].rsplit("-", 1)[0] in ROBOTASKS_ENVS]
         elif name in specs:
             out.append(name)
+        elif f"{NAMESPACE}/{name}" in specs:  # "PlateStacking-v3", as dm.load takes it
+            out.append(f"{NAMESPACE}/{name}")
+        elif current := [i for i in specs if i.split("/", 1)[1].rsplit("-v", 1)[0]
+                         == name.split("/")[-1]]:  # no version: the current one
+            out.append(current[-1])
         else:
-            raise SystemExit(f"unknown env {name!r}; valid: {', '.join(_GROUPS)} or one of "
-                             f"{', '.join(specs)}")
+            from clfd_bench.harness.config import suggest
+            from clfd_bench.harness.validate import InputError
+
+            bare = [i.split("/", 1)[1] for i in specs]
+            raise InputError(f"unknown --env {name!r}{suggest(name.split('/')[-1], bare)}; "
+                             f"valid: {', '.join(_GROUPS)} or an env id (with or without "
+                             f"'{NAMESPACE}/'): {', '.join(bare)}")
     return list(dict.fromkeys(out))
 
 
@@ -47,7 +57,9 @@ def _parse_demos(text: str) -> list[int] | None:
     try:
         return [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise SystemExit(f"--demos must be 'all' or comma-separated integers, got {text!r}"
+        from clfd_bench.harness.validate import InputError
+
+        raise InputError(f"--demos must be 'all' or comma-separated integers, got {text!r}"
                          ) from None
 
 
@@ -60,8 +72,12 @@ def _families(text: str) -> list[str] | None:
     names = [x.strip() for x in text.split(",") if x.strip()]
     bad = [n for n in names if n not in FAMILIES]
     if bad or not names:
-        raise SystemExit(f"clfd-bench replay: unknown --perturb {', '.join(bad) or text!r}; "
-                         f"valid: all or comma-separated names of {', '.join(FAMILIES)}")
+        from clfd_bench.harness.config import suggest
+        from clfd_bench.harness.validate import InputError
+
+        hint = suggest(bad[0], list(FAMILIES)) if bad else ""
+        raise InputError(f"unknown --perturb {', '.join(bad) or text!r}{hint}; valid: all or "
+                         f"comma-separated names of {', '.join(FAMILIES)}")
     return names
 
 

@@ -115,8 +115,8 @@ def _run(args: argparse.Namespace) -> int:
         check_count,
         check_dataset,
         check_env_count,
-        check_out_dir,
         check_robot_model,
+        check_run_out_dir,
     )
     from clfd_bench.methods import MethodClassError, UnknownMethodError
 
@@ -141,7 +141,7 @@ def _run(args: argparse.Namespace) -> int:
     if not args.out:
         print("clfd-bench train: error: --out DIR is required", file=sys.stderr)
         return 2
-    check_out_dir(args.out)
+    check_run_out_dir(args.out)
     check_dataset(config.dataset, config.order)
     if not args.no_sim:
         check_robot_model()

@@ -17,9 +17,14 @@ from typing import Any
 import torch
 from torch import Tensor
 
-__all__ = ["CHECKPOINT_FORMAT", "decode_checkpoint", "encode_checkpoint"]
+__all__ = ["CHECKPOINT_FORMAT", "CheckpointError", "decode_checkpoint", "encode_checkpoint"]
 
 CHECKPOINT_FORMAT = "clfd-bench-checkpoint/1"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file cannot be read (truncated, corrupt, not ours); the message names the
+    file and the fix. A user-facing error: ``clfd-bench`` prints it as one line, exit 2."""
 
 
 def encode_checkpoint(header: Mapping[str, Any], tensors: Mapping[str, Tensor]) -> bytes:
@@ -39,13 +44,18 @@ def decode_checkpoint(data: bytes, source: str = "checkpoint"
     """``(header, tensors)`` of bytes written by :func:`encode_checkpoint`.
 
     Raises:
-        ValueError: the bytes are not a clfd-bench checkpoint (``source`` names them).
+        CheckpointError: the bytes are not a clfd-bench checkpoint (``source`` names them).
     """
     try:
         obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
-        raise ValueError(f"{source} is not a readable clfd-bench checkpoint ({exc}); delete it "
-                         "to retrain the run from its first task") from None
+        # the first sentence of torch's message ("... failed finding central directory")
+        reason = str(exc).splitlines()[0].split(". ")[0] if str(exc) else type(exc).__name__
+        raise CheckpointError(f"{source} is not a readable clfd-bench checkpoint (truncated or "
+                              f"corrupt: {reason}); delete it to train the run again from its "
+                              "first task") from None
     if not isinstance(obj, dict) or obj.get("format") != CHECKPOINT_FORMAT:
-        raise ValueError(f"{source} is not a clfd-bench checkpoint (format {CHECKPOINT_FORMAT})")
+        raise CheckpointError(f"{source} is not a clfd-bench checkpoint (format "
+                              f"{CHECKPOINT_FORMAT}); delete it to train the run again from "
+                              "its first task")
     return json.loads(obj["header"]), dict(obj["tensors"])

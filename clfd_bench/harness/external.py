@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from clfd_bench.data.types import Dataset, Task
-from clfd_bench.harness.validate import InputError, check_out_dir
+from clfd_bench.harness.validate import InputError, check_run_out_dir
 from clfd_bench.io import sha256_file
 from clfd_bench.runs import CACHE_FILE, LOCK_FILE, PREDICTIONS_DIR, RunDir, RunFileError
 
@@ -534,7 +534,7 @@ def score_predictions(
     if isinstance(sim_workers, bool) or not isinstance(sim_workers, int) or sim_workers < 1:
         raise PredictionsError(f"--sim-workers {sim_workers!r}: must be an integer >= 1")
     ds = _load_dataset(dataset, order, node)
-    check_out_dir(out)
+    check_run_out_dir(out)
     ext = read_predictions(predictions, ds, tasks)  # every check before anything is written
     m = ext.num_tasks
     config = {"method": method_name, "dataset": ds.name, "profile": "external", "order": order,

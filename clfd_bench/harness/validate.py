@@ -26,6 +26,7 @@ __all__ = [
     "check_env_count",
     "check_out_dir",
     "check_robot_model",
+    "check_run_out_dir",
 ]
 
 
@@ -116,6 +117,31 @@ def check_out_dir(path: str | os.PathLike[str], flag: str = "--out") -> None:
                          "(permissions or a read-only filesystem); choose another path")
 
 
+def check_run_out_dir(path: str | os.PathLike[str], flag: str = "--out") -> None:
+    """:func:`check_out_dir`, and the folder is new, empty or a run directory: a run writes
+    its files (``results.json``, ``checkpoint.pt``, ...) into ``path``, so a folder that holds
+    other things (``--out docs``) is refused rather than written into. Hidden files
+    (``.DS_Store``) do not count.
+
+    Raises:
+        InputError: one line naming the path, an entry found in it, and the fix.
+    """
+    from clfd_bench.runs import RUN_FILES
+
+    check_out_dir(path, flag)
+    out = Path(path)
+    if not out.is_dir():
+        return
+    entries = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if entries and not any(name in RUN_FILES for name in entries) \
+            and not (out / RUN_FILES[-1]).exists():
+        raise InputError(
+            f"{flag} {out} holds {len(entries)} other entr{'y' if len(entries) == 1 else 'ies'} "
+            f"(e.g. {entries[0]!r}) and is not a run directory; pass a new or empty folder "
+            "(a run writes results.json, checkpoint.pt, predictions/ ... into it), or the "
+            "folder of an earlier run to resume it")
+
+
 def check_dataset(name: str, order: int = 0) -> None:
     """Load dataset ``name`` in task ``order`` once (every file checked against its pinned
     sha256 and shape), so that a missing, truncated or corrupt file is reported before any
@@ -161,9 +187,10 @@ def check_robot_model() -> None:
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
+    from clfd_bench.harness.checkpoint import CheckpointError
     from clfd_bench.methods import UnknownMethodError
 
-    return (ConfigError, InputError, DatasetError, UnknownMethodError)
+    return (ConfigError, InputError, DatasetError, UnknownMethodError, CheckpointError)
 
 
 USER_ERRORS: tuple[type[BaseException], ...] = _user_errors()

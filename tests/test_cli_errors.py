@@ -1,0 +1,72 @@
+"""Mistakes at the command line end in one line (``clfd-bench <cmd>: error: ...``), exit 2,
+nothing written; an interrupted run says how to resume."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+CLI = [sys.executable, "-m", "clfd_bench.cli.main"]
+SMOKE = ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "smoke", "--no-sim"]
+
+
+def _run(args: list[str], **kw) -> subprocess.CompletedProcess:
+    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=600, **kw)
+
+
+def _one_error_line(res: subprocess.CompletedProcess, command: str) -> str:
+    assert res.returncode == 2, (res.returncode, res.stderr)
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"clfd-bench {command}: error: "), res.stderr
+    return lines[0]
+
+
+def test_a_truncated_checkpoint_is_one_line_and_names_the_fix(tmp_path):
+    out = tmp_path / "run"
+    assert _run(SMOKE + ["--tasks", "1", "--out", str(out)]).returncode == 0
+    ckpt = out / "checkpoint.pt"
+    ckpt.write_bytes(ckpt.read_bytes()[:1000])
+    line = _one_error_line(_run(SMOKE + ["--tasks", "2", "--out", str(out)]), "train")
+    assert str(ckpt) in line and "delete it" in line
+
+
+def test_a_folder_that_is_not_a_run_is_not_written_into(tmp_path):
+    folder = tmp_path / "docs"
+    folder.mkdir()
+    (folder / "notes.md").write_text("mine\n")
+    line = _one_error_line(_run(SMOKE + ["--tasks", "1", "--out", str(folder)]), "train")
+    assert "'notes.md'" in line and "not a run directory" in line
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.md"]
+
+
+def test_replay_names_the_closest_env_and_takes_ids_without_namespace():
+    line = _one_error_line(_run(["replay", "--env", "PlateStaking-v3"]), "replay")
+    assert "did you mean 'PlateStacking-v3'" in line
+    line = _one_error_line(_run(["replay", "--env", "PlateStacking-v3", "--perturb", "revers"]),
+                           "replay")
+    assert "did you mean 'reverse'" in line  # the env id itself was accepted
+
+
+def test_ctrl_c_says_how_to_resume(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        CLI + ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "fast",
+               "--tasks", "1", "--no-sim", "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "CLFD_NO_PROGRESS": "1"},
+        # a background job inherits SIGINT ignored; a user's terminal delivers it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    deadline = time.monotonic() + 120
+    while not (out / ".lock").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(2.0)  # training has started (fast's first letter takes tens of seconds)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == (
+        "clfd-bench train: interrupted; finished work is kept: run the same command again, "
+        "it resumes after the last finished task")
