@@ -4,8 +4,9 @@
 #   bash run.sh test   # set up, then run the test suite
 # Set-up: a virtual environment in .venv (or $CLFD_VENV) with torch 2.13.0 and the project
 # installed in editable mode; reused on later runs. Offline machines: set CLFD_DATA_DIR and
-# MENAGERIE_ROOT once, for this command (README, "Offline use"); ../shared is used when it is
-# beside the repo. Either is then remembered in the venv (clfd_bench/settings.py).
+# MENAGERIE_ROOT once, for this command (docs/data.md, "Downloads, cache and offline use");
+# ../shared is used when it is beside the repo. Either is then remembered in the venv
+# (clfd_bench/settings.py).
 set -euo pipefail
 cd "$(dirname "$0")"
 what="${1:-}"

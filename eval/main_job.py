@@ -1,6 +1,6 @@
 """The README's main job (``bash run.sh main``): a small execution-scored leaderboard.
 
-HelloWorld (7 letters), all seven CL methods, the ``fast`` profile, seed 0, task order 0,
+HelloWorld (7 letters), the paper's seven CL methods, the ``fast`` profile, seed 0, task order 0,
 every prediction also executed on the simulated Panda; then a video of the robot writing
 "hello world" with the letters HN learned; last, the static results site (``clfd-bench
 site``), whose ``index.html`` path it prints. Writes into ``results/`` (or ``--out``):

@@ -1,4 +1,5 @@
-"""Start configurations by backward tracking (DESIGN.md) and the hand frame convention."""
+"""Start configurations by backward tracking (docs/data.md, "Frames and start configurations")
+and the hand frame convention."""
 
 from __future__ import annotations
 

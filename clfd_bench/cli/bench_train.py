@@ -27,7 +27,8 @@ from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS, node_label
 __all__ = ["REFERENCE_IT_PER_S", "bench_method", "register"]
 
 REFERENCE_IT_PER_S = {("hn", "lasa"): 35.0, ("sg", "lasa"): 27.0}
-"""The original implementation's training speed on task 0 (2-core CPU, DESIGN.md)."""
+"""The original implementation's training speed on task 0 (2-core CPU; docs/learning.md,
+"Speed")."""
 
 METHODS = ("sg", "ft", "rep", "si", "mas", "hn", "chn")
 

@@ -24,7 +24,7 @@ from clfd_bench.data.types import Dataset, Task
 __all__ = ["DATASETS", "DatasetInfo", "CorruptDatasetError", "load_dataset", "list_datasets"]
 
 RECORDING_HZ = 60.0
-"""HelloWorld and RoboTasks were recorded at 60 Hz (DESIGN.md)."""
+"""HelloWorld and RoboTasks were recorded at 60 Hz (docs/data.md)."""
 
 CM_TO_M = 0.01
 

@@ -39,6 +39,7 @@ from typing import Any
 
 from clfd_bench.io import atomic_write_bytes, atomic_write_text
 from clfd_bench.leaderboard.report import format_cell as _fmt
+from clfd_bench.metrics.glossary import tooltip
 from clfd_bench.site.wall import (
     WALL_STYLE,
     TileJob,
@@ -75,6 +76,10 @@ _COLUMNS = (
 _GROUPS = {"trajectory": "Trajectory (DTW under the paper's threshold)",
            "execution": "Execution on the simulated Panda", "cost": "Cost"}
 _STATIC = ("site.css", "sort.js", "wall.js")
+#: The table's other headers, by glossary key (their tooltips: clfd_bench.metrics.glossary).
+_HEADER_KEYS = ("rank", "paper_rank", "method", "runs", "exec_failures")
+#: The CL metrics of a run's page, in its order.
+_RUN_METRICS = ("ACC", "REM", "BWT", "MS", "TE", "SSS")
 
 
 @dataclasses.dataclass
@@ -167,8 +172,9 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             groups[-1]["span"] += 1
         else:
             groups.append({"key": group, "title": _GROUPS[group], "span": 1})
-    return {"groups": groups, "columns": [{"key": k, "head": h, "group": g}
+    return {"groups": groups, "columns": [{"key": k, "head": h, "group": g, "title": tooltip(k)}
                                           for k, h, g, _ in _COLUMNS],
+            "tips": {k: tooltip(k) for k in _HEADER_KEYS},
             "rows": rows, "kinds": kinds}
 
 
@@ -263,6 +269,15 @@ def _tile(run: _Run, j: int, demo: int, result: TileResult | None, site: Path,
     return tile
 
 
+def _run_metric_tip(key: str) -> str:
+    """A run page's CL metric row: its glossary definition, and its execution counterpart's."""
+    from clfd_bench.metrics.glossary import GLOSSARY
+
+    tip = tooltip(key)
+    return tip + (f" Execution column: {tooltip('exec_' + key)}" if f"exec_{key}" in GLOSSARY
+                  else "")
+
+
 def _run_page(run: _Run, site: Path) -> dict[str, Any]:
     """The context of a run's page."""
     from clfd_bench.site.heatmaps import plot_r_matrices
@@ -282,8 +297,9 @@ def _run_page(run: _Run, site: Path) -> dict[str, Any]:
     ctx["matrix_names"] = list(matrices)
     cl = results.get("cl_metrics") or {}
     sim_cl = results.get("sim_cl_metrics") or {}
-    ctx["metrics"] = [(k, _fmt(cl.get(k), k), _fmt(sim_cl.get(k), k) if k in sim_cl else "")
-                      for k in ("ACC", "REM", "BWT", "MS", "TE", "SSS")]
+    ctx["metrics"] = [(k, _fmt(cl.get(k), k), _fmt(sim_cl.get(k), k) if k in sim_cl else "",
+                       _run_metric_tip(k)) for k in _RUN_METRICS]
+    ctx["r_tip"] = tooltip("R")
     failures = []
     for j in range(saved.num_learned):
         execution = saved.execution(j)
