@@ -86,11 +86,28 @@ def test_envs_are_kept_apart():
 def test_failure_reason_names_failed_checks_first():
     info = {"is_success": False, "checks": checks_json([
         Check("goal", 0.0112, 0.01, "<=", "m"), Check("dwell", 0.1, 0.5, "<=")]), "dtw": 9.5}
-    assert failure_reason(False, info) == "task not achieved: goal 0.0112 m > 0.01 m (dtw=9.5)"
+    assert failure_reason(False, info) == "task not achieved: goal 11.2 mm > 10 mm allowed"
     no_checks = {k: v for k, v in info.items() if k != "checks"}
     assert failure_reason(False, no_checks) == "task not achieved (dtw=9.5)"
     assert failure_reason(False, dict(info, failure_reason="reflex: x")) == "reflex: x"
     assert failure_reason(True, info) is None
+
+
+def test_failure_reason_says_every_failed_check_in_words():
+    checks = [
+        Check("goal", 0.0106, 0.01, "<=", "m", "last ink point to the task's end point"),
+        Check("turn", 33.38, 47.45, ">=", "deg"),
+        Check("beans_in_scoop", 0.0, 3.0, ">="),
+        Check.flag("held", False, "the scoop never slipped"),
+        Check("coverage", None, 0.9, ">=", "", "no ink"),
+        Check("drag", 0.25, 0.3, "<=", "m"),  # passed: not named
+        Check("stray_ink", 0.35, 0.2, "<=", "m"),
+    ]
+    info = {"is_success": False, "checks": checks_json(checks), "held": False}
+    assert failure_reason(False, info) == (
+        "task not achieved: goal 10.6 mm > 10 mm allowed (last ink point to the task's end "
+        "point); turn 33.4° < 47.5° needed; beans_in_scoop 0 < 3 needed; held not met (the "
+        "scoop never slipped); coverage not measured (no ink); stray_ink 35 cm > 20 cm allowed")
 
 
 def test_summary_keeps_checks_and_says_whether_the_rollout_stopped_early():

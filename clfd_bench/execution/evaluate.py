@@ -23,12 +23,13 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from clfd_bench.envs.checks import check_from_json
 from clfd_bench.execution.cache import nonfinite_summary, prediction_key
 from clfd_bench.execution.env_pool import get_env
-from clfd_bench.execution.execute import ExecResult, execute
+from clfd_bench.execution.execute import ExecResult, checks_reason, execute
 from clfd_bench.execution.fingerprint import sim_fingerprint, sim_provenance
 from clfd_bench.execution.saved_run import SavedRun, load_run, load_run_predictions
-from clfd_bench.execution.scoring import failure_counts, sim_fields
+from clfd_bench.execution.scoring import failed_check_counts, failure_counts, sim_fields
 from clfd_bench.progress import progress
 from clfd_bench.runs import RunDir
 
@@ -118,6 +119,25 @@ class RolloutObserver(Protocol):
                     demonstration: np.ndarray | None = None) -> None: ...
 
 
+def _reason(hit: dict[str, Any]) -> str | None:
+    """A cached execution's failure reason; a task failure decided at the end says it from its
+    checks in today's words (:func:`~clfd_bench.execution.execute.checks_reason`), so a cache
+    written before the wording changed reads as a new one."""
+    if hit.get("failure_kind") == "task" and not hit.get("stopped_early") and hit.get("checks"):
+        named = checks_reason([check_from_json(c) for c in hit["checks"]])
+        if named is not None:
+            return named
+    return hit["failure_reason"]
+
+
+def _failed_checks(hit: dict[str, Any]) -> list[str]:
+    """Names of the success checks a cached execution failed (empty unless it is a ``task``
+    failure of an env that reports its checks)."""
+    if hit.get("failure_kind") != "task":
+        return []
+    return [c["name"] for c in hit.get("checks") or () if not check_from_json(c).passed]
+
+
 def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *,
                  force: bool = False, settle_s: float | None = None,
                  workers: int = 1) -> dict[str, Any]:
@@ -127,10 +147,12 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
     prediction (``predictions/after_task_{i}.npz``) is executed in task ``j``'s env; then
     ``results.json`` gains (or has replaced) ``success``, ``sim_accuracy``, ``sim_cl_metrics``
     (see :func:`sim_fields`) and ``sim`` (see :func:`sim_provenance`, plus ``tracking_error``
-    ``[i][j][d]`` mean hand position error in m, ``failure_reason`` and ``failure_kind``
-    ``[i][j][d]``, ``failure_counts`` {kind: count} over every point, rollout counts and wall
-    time). Every other key of ``results.json`` is kept as it is. Tasks without an env
-    (RoboTasks9's extra tasks) get None and are left out of ``sim_cl_metrics``; a prediction
+    ``[i][j][d]`` mean hand position error in m, ``failure_reason``, ``failure_kind`` and
+    ``failed_checks`` (names of the success checks a task failure failed), all ``[i][j][d]``;
+    ``failure_counts`` {kind: count} and ``failed_check_counts`` {check: count} over every
+    point, rollout counts and wall time). Every other key of ``results.json`` is kept as it
+    is. Tasks without an env (RoboTasks9's extra tasks) get None and are left out of
+    ``sim_cl_metrics``; a prediction
     with NaN/inf counts as a failure without being executed.
 
     Each distinct (env, demo, prediction) is executed once: identical predictions of a task
@@ -217,12 +239,14 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
     track: list[list[list[float | None] | None]] = [[None] * m for _ in range(m)]
     reasons: list[list[list[str | None] | None]] = [[None] * m for _ in range(m)]
     kinds: list[list[list[str | None] | None]] = [[None] * m for _ in range(m)]
+    checks: list[list[list[list[str]] | None]] = [[None] * m for _ in range(m)]
     for i, j, _, key, _ in points:
         hit = cache[key]
         for table, value in ((success, bool(hit["success"])),
                              (track, hit["mean_tracking_error"]),
-                             (reasons, hit["failure_reason"]),
-                             (kinds, hit["failure_kind"])):
+                             (reasons, _reason(hit)),
+                             (kinds, hit["failure_kind"]),
+                             (checks, _failed_checks(hit))):
             if table[i][j] is None:
                 table[i][j] = []
             table[i][j].append(value)
@@ -243,6 +267,8 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
         "failure_reason": reasons,
         "failure_kind": kinds,
         "failure_counts": failure_counts(kinds),
+        "failed_checks": checks,
+        "failed_check_counts": failed_check_counts(checks),
     })
     fields["sim"] = sim
     store.write_sim_results(fields)

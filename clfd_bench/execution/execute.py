@@ -17,8 +17,10 @@ execution counts its first failure.
 
 Every env reports the checks behind its success decision in ``info["checks"]``
 (:class:`clfd_bench.envs.checks.Check` as JSON); :meth:`ExecResult.summary` keeps them, and a
-task failure's reason names the failed checks first (``"task not achieved: goal 0.0112 m >
-0.01 m"``). An env that reports none keeps the older text (its task-specific info values).
+task failure's reason names every failed check, its value and its bound (``"task not achieved:
+goal 11.2 mm > 10 mm allowed (last ink point to the task's end point)"``,
+:func:`explain_check`). An env that reports none keeps the older text (its task-specific info
+values).
 """
 
 from __future__ import annotations
@@ -36,8 +38,8 @@ from clfd_bench.execution.env_pool import get_env
 from clfd_bench.execution.trace import FrameHook, Trace, tracer
 from clfd_bench.io import json_safe
 
-__all__ = ["FAILURE_KINDS", "ExecResult", "execute", "execute_predictions", "failure_kind",
-           "failure_reason"]
+__all__ = ["FAILURE_KINDS", "ExecResult", "checks_reason", "execute", "execute_predictions",
+           "explain_check", "failure_kind", "failure_reason"]
 
 #: Kinds of failure, in the order reports list them.
 FAILURE_KINDS = ("reflex", "tracking", "unreachable", "collision", "blowup", "diverged", "task")
@@ -125,11 +127,49 @@ def _finite_or_none(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _quantity(value: float, unit: str, scale: float) -> str:
+    """``value`` in a unit a reader takes in at once: metres below 0.1 m (by ``scale``, the
+    larger of value and bound) as mm, below 1 m as cm; degrees with the degree sign."""
+    if unit == "m":
+        if scale < 0.1:
+            return f"{value * 1000:.3g} mm"
+        if scale < 1.0:
+            return f"{value * 100:.3g} cm"
+        return f"{value:.3g} m"
+    if unit == "deg":
+        return f"{value:.3g}°"
+    return f"{value:.3g}" + (f" {unit}" if unit else "")
+
+
+def explain_check(check: Check) -> str:
+    """A failed (or passed) check in words, naming it: ``"goal 10.6 mm > 10 mm allowed (last
+    ink point to the task's end point)"``, ``"beans_in_scoop 0 < 3 needed"``,
+    ``"held not met (the scoop never slipped)"``, ``"coverage not measured (no ink)"``."""
+    note = f" ({check.note})" if check.note else ""
+    if check.value is None or not math.isfinite(float(check.value)):
+        return f"{check.name} not measured{note}"
+    value = float(check.value)
+    if check.op == ">=" and check.bound == 1.0 and check.unit == "" and value in (0.0, 1.0):
+        return f"{check.name} {'met' if check.passed else 'not met'}{note}"  # a yes/no flag
+    scale = max(abs(value), abs(check.bound))
+    v, b = _quantity(value, check.unit, scale), _quantity(check.bound, check.unit, scale)
+    if check.op == "<=":
+        return f"{check.name} {v} {'<=' if check.passed else '>'} {b} allowed{note}"
+    return f"{check.name} {v} {'>=' if check.passed else '<'} {b} needed{note}"
+
+
+def checks_reason(checks: Sequence[Check]) -> str | None:
+    """``"task not achieved: "`` and every failed check in words (:func:`explain_check`), or
+    None when every check passed (or there are none)."""
+    failed = [explain_check(c) for c in checks if not c.passed]
+    return "task not achieved: " + "; ".join(failed) if failed else None
+
+
 def failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
     """None on success; else why, in words (see :attr:`ExecResult.failure_reason`): the env's
     own reason for ending the episode, the decided failure a rollout stopped on, or "task not
-    achieved" naming the failed checks of ``info["checks"]`` first (:meth:`Check.describe`),
-    then the env's other scalar info values."""
+    achieved" and the failed checks of ``info["checks"]`` (:func:`explain_check`); an env
+    that reports no checks gets its other scalar info values instead."""
     if success:
         return None
     if info.get("failure_reason"):
@@ -138,10 +178,12 @@ def failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
     if isinstance(stopped, Mapping):
         return (f"task failed, decided after {stopped['stopped_at']} of {stopped['horizon']} "
                 f"steps (the rollout stopped there): {stopped['reason']}")
-    failed = [c.describe() for c in _info_checks(info) if not c.passed]
+    named = checks_reason(_info_checks(info))
+    if named is not None:
+        return named
     parts = []
     for key, value in info.items():
-        if key in _BASE_INFO_KEYS:
+        if key in _BASE_INFO_KEYS or key == "checks":
             continue
         if isinstance(value, (bool, np.bool_)):
             parts.append(f"{key}={bool(value)}")
@@ -150,8 +192,7 @@ def failure_reason(success: bool, info: Mapping[str, Any]) -> str | None:
         elif isinstance(value, (list, tuple)) and all(
                 isinstance(v, (int, float, np.integer, np.floating)) for v in value):
             parts.append(f"{key}=[{', '.join(f'{float(v):.4g}' for v in value)}]")
-    head = "task not achieved" + (f": {'; '.join(failed)}" if failed else "")
-    return head + (f" ({', '.join(parts)})" if parts else "")
+    return "task not achieved" + (f" ({', '.join(parts)})" if parts else "")
 
 
 def _info_checks(info: Mapping[str, Any]) -> list[Check]:

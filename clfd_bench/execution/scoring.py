@@ -100,3 +100,25 @@ def failure_counts(kinds: Sequence[Sequence[Sequence[str | None] | None]]) -> di
                         raise ValueError(f"unknown failure kind {kind!r}; valid: {FAILURE_KINDS}")
                     counts[kind] += 1
     return counts
+
+
+def failed_check_counts(
+    checks: Sequence[Sequence[Sequence[Sequence[str] | None] | None]],
+) -> dict[str, int]:
+    """How often each success check failed over every evaluation point, most frequent first
+    (ties by name): the checks behind the ``task`` failures.
+
+    Args:
+        checks: ``[M][M][N_j]`` names of the failed checks of each executed point (None or
+            empty: it succeeded, failed otherwise, or its env reports no checks), as
+            ``results.json``'s ``sim.failed_checks``. An execution that fails two checks
+            counts for both.
+    """
+    counts: dict[str, int] = {}
+    for row in checks:
+        for cell in row:
+            for names in cell or ():
+                for name in names or ():
+                    counts[name] = counts.get(name, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+

@@ -54,6 +54,9 @@ class MethodRow:
     values: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
     #: execution failures by kind, summed over the runs that report them (None: no run does).
     failures: dict[str, int] | None = None
+    #: the success checks behind the task failures, summed the same way (None: no run reports
+    #: them; results.json ``sim.failed_check_counts``).
+    failed_checks: dict[str, int] | None = None
     #: keys some run of the row left empty because it did not provide their inputs
     #: (``results.json`` ``not_provided``: predictions scored from elsewhere).
     not_provided: set[str] = field(default_factory=set)
@@ -153,6 +156,11 @@ def aggregate(records: list[RunRecord], methods: list[str]) -> list[MethodRow]:
             row.failures = row.failures or {}
             for kind, n in counts.items():
                 row.failures[kind] = row.failures.get(kind, 0) + int(n)
+        by_check = (res.get("sim") or {}).get("failed_check_counts")
+        if by_check is not None:
+            row.failed_checks = row.failed_checks or {}
+            for name, n in by_check.items():
+                row.failed_checks[name] = row.failed_checks.get(name, 0) + int(n)
         if res.get("train_time_s"):
             row.values["train_time_s"].append(float(sum(res["train_time_s"])))
         cpu = res.get("train_cpu_s") or []

@@ -373,6 +373,27 @@ def _failure_table(rows: list[MethodRow]) -> list[str]:
         f = row.failures
         cells = ["-" if f is None else str(f.get(k, 0)) for k in kinds]
         lines.append(f"| {row.method.upper()} | " + " | ".join(cells) + " |")
+    return lines + _failed_check_table(rows)
+
+
+def _failed_check_table(rows: list[MethodRow]) -> list[str]:
+    """Markdown lines: the success checks behind the task failures, per method."""
+    totals: dict[str, int] = {}
+    for row in rows:
+        for name, n in (row.failed_checks or {}).items():
+            totals[name] = totals.get(name, 0) + n
+    if not totals:
+        return []
+    names = sorted(totals, key=lambda k: (-totals[k], k))
+    lines = ["", "### Task failures, by the check that failed", "",
+             "How often each success check failed in the task failures above (an execution "
+             "that fails two checks counts for both; the checks, their bounds and why: "
+             "tasks/README.md). A run's page on the results site gives each failure in words.",
+             "", "| method | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
+    for row in rows:
+        f = row.failed_checks
+        cells = ["-" if f is None else str(f.get(k, 0)) for k in names]
+        lines.append(f"| {row.method.upper()} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -422,6 +443,7 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
                 "paper_cl_score": paper.scores.get(row.method.lower()),
                 "errors": row.errors,
                 "exec_failures": row.failures,
+                "exec_failed_checks": row.failed_checks,
                 "not_provided": sorted(row.not_provided),
                 "metrics": {
                     key: {

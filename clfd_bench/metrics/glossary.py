@@ -126,7 +126,9 @@ SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
             Term("exec_failures", "exec failures",
                  "the executions of the method's runs that failed, counted by kind (reflex, "
                  "tracking, unreachable, collision, blowup, diverged, task: see the failure "
-                 "kinds); an execution counts its first failure."),
+                 "kinds); an execution counts its first failure. Below them, the success "
+                 "checks behind the task failures, each with how often it failed (an execution "
+                 "that fails two counts for both)."),
         ),
     ),
     (

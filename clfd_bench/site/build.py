@@ -164,6 +164,8 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             "paper_rank": row.get("paper_rank"), "cells": cells,
             "failures": None if failures is None else [(k, failures.get(k, 0)) for k in kinds],
             "failures_total": None if failures is None else sum(failures.values()),
+            "failed_checks": ", ".join(f"{name} {n}" for name, n in
+                                       (row.get("exec_failed_checks") or {}).items()),
             "errors": row.get("errors") or [], "pages": pages.get(method, []),
         })
     groups = []

@@ -399,24 +399,34 @@ def _font(size: int):
     return ImageFont.load_default(size=size)
 
 
-def _fit(draw: Any, line: str, font: Any, width: int) -> str:
-    """``line`` cut (with an ellipsis) to at most ``width`` pixels in ``font``."""
-    if draw.textlength(line, font=font) <= width:
-        return line
-    lo, hi = 0, len(line)
-    while lo < hi:  # the longest prefix that fits with the ellipsis
-        mid = (lo + hi + 1) // 2
-        if draw.textlength(line[:mid] + "…", font=font) <= width:
-            lo = mid
-        else:
-            hi = mid - 1
-    return line[:lo] + "…"
+def _wrap(draw: Any, line: str, font: Any, width: int) -> list[str]:
+    """``line`` broken at spaces (a word longer than ``width`` at a character) into lines of
+    at most ``width`` pixels in ``font``: nothing is cut off."""
+    out: list[str] = []
+    current = ""
+    for word in line.split(" "):
+        trial = f"{current} {word}" if current else word
+        if draw.textlength(trial, font=font) <= width:
+            current = trial
+            continue
+        if current:
+            out.append(current)
+        current = word
+        while draw.textlength(current, font=font) > width and len(current) > 1:
+            cut = len(current) - 1
+            while cut > 1 and draw.textlength(current[:cut], font=font) > width:
+                cut -= 1
+            out.append(current[:cut])
+            current = current[cut:]
+    out.append(current)
+    return out
 
 
 def _caption(frame: np.ndarray, text: str | None,
              border: tuple[int, int, int] | None = None) -> np.ndarray:
-    """``frame`` with ``text`` (if any; one line per ``\\n``, each cut to the frame's width)
-    in its top-left corner on a black box, and an optional coloured border."""
+    """``frame`` with ``text`` (if any; one line per ``\\n``, each wrapped at the frame's
+    width, never cut) in its top-left corner on a dark veil, and an optional coloured
+    border."""
     from PIL import Image, ImageDraw
 
     out = frame.copy()
@@ -425,12 +435,17 @@ def _caption(frame: np.ndarray, text: str | None,
         draw = ImageDraw.Draw(img)
         font = _font(max(10, frame.shape[0] // 24))
         pad = max(3, frame.shape[0] // 60) + 3  # clear of the border
-        lines = [_fit(draw, line, font, frame.shape[1] - 2 * pad - 6)
-                 for line in text.split("\n")]
+        lines = [part for line in text.split("\n")
+                 for part in _wrap(draw, line, font, frame.shape[1] - 2 * pad - 6)]
         fitted = "\n".join(lines)
         x0, y0, x1, y1 = draw.multiline_textbbox((pad, pad), fitted, font=font)
-        draw.rectangle((x0 - 3, y0 - 2, x1 + 3, y1 + 2), fill=(0, 0, 0))
-        draw.multiline_text((pad, pad), fitted, fill=(255, 255, 255), font=font)
+        # a dark veil, not an opaque box: a long reason wrapped over a small tile leaves the
+        # scene visible under it
+        box = np.s_[max(0, y0 - 2):y1 + 3, max(0, x0 - 3):x1 + 4]
+        veiled = out.copy()
+        veiled[box] = (veiled[box].astype(np.float32) * 0.35).astype(np.uint8)
+        img = Image.fromarray(veiled)
+        ImageDraw.Draw(img).multiline_text((pad, pad), fitted, fill=(255, 255, 255), font=font)
         out = np.asarray(img).copy()
     if border is not None:
         w = max(3, frame.shape[0] // 60)
@@ -806,8 +821,9 @@ def _legend(tile: tuple[int, int], lines: Sequence[str]) -> np.ndarray:
     draw = ImageDraw.Draw(img)
     font = _font(max(10, h // 16))
     pad = max(4, h // 20)
-    draw.multiline_text((pad, pad), "\n".join(_fit(draw, t, font, w - 2 * pad) for t in lines),
-                        fill=(255, 255, 255), font=font, spacing=max(2, h // 40))
+    wrapped = [part for t in lines for part in _wrap(draw, t, font, w - 2 * pad)]
+    draw.multiline_text((pad, pad), "\n".join(wrapped), fill=(255, 255, 255), font=font,
+                        spacing=max(2, h // 40))
     return np.asarray(img)
 
 
