@@ -14,7 +14,7 @@ import pytest
 from clfd_bench.data import load_dataset
 from clfd_bench.execution.env_pool import get_env
 from clfd_bench.execution.saved_run import load_run
-from clfd_bench.viz import video as video_mod
+from clfd_bench.viz import compare as compare_mod
 from clfd_bench.viz.video import (
     FAILURE_RGB,
     SUCCESS_RGB,
@@ -117,13 +117,13 @@ def test_comparison_video_is_a_grid_of_tiles_one_per_run(tiny_run, tiny_ft_run, 
     rows, cols, tw, th = comparison_grid(3, style)
     assert (rows, cols, tw, th) == (2, 2, 96, 54)
     rendered: list[tuple[int, int, str]] = []
-    real = video_mod.render_rollout
+    real = compare_mod.render_rollout
 
     def spy(env, trajectory, demo, sinks, **kw):
         rendered.append((kw["style"].width, kw["style"].height, kw["caption"]))
         return real(env, trajectory, demo, sinks, **kw)
 
-    monkeypatch.setattr(video_mod, "render_rollout", spy)
+    monkeypatch.setattr(compare_mod, "render_rollout", spy)
     out = render_comparison_video([tiny_run, tiny_ft_run, tiny_run], task="e", demo=1,
                                   out_path=tmp_path / "cmp.mp4", style=style)
     # Each tile rendered at tile size (not the whole frame's, then shrunk), one per run.
