@@ -213,3 +213,38 @@ def test_video_cli_one_task_by_name(tiny_run, tmp_path, capsys):
     args = parser.parse_args(["video", "--compare", str(tiny_run), "--out", str(tmp_path)])
     assert args.func(args) == 2
     assert "--compare shows one task: give --task" in capsys.readouterr().err
+
+
+def _line_box(frame: np.ndarray) -> tuple[float, float]:
+    """The share of the frame's width and height spanned by the prediction (orange) and the
+    demonstration (green) lines drawn into it."""
+    r, g, b = (frame[..., k].astype(int) for k in range(3))
+    orange = (r > 200) & (g > 90) & (g < 190) & (b < 80)
+    green = (g > 120) & (r < 110) & (b < 110) & (g - r > 60)
+    ys, xs = np.nonzero(orange | green)
+    assert len(xs) > 20, "no prediction or demonstration line in the frame"
+    h, w = frame.shape[:2]
+    (x0, x1), (y0, y1) = np.percentile(xs, [1, 99]), np.percentile(ys, [1, 99])  # stray pixels
+    return (x1 - x0 + 1) / w, (y1 - y0 + 1) / h
+
+
+@pytest.mark.parametrize("size", [(240, 180), (320, 180)])
+def test_a_letter_fills_the_frame(size):
+    """The writing camera frames the letter, not the robot: at the wall's 4:3 and a 16:9
+    frame, the letter's lines span at least half of the frame's width or height (whichever
+    its shape fills first; the old camera, framing the arm, gave the letter 'h' ~12 % x 15 %
+    of a 240x180 tile) and lie inside it; the robot is drawn see-through over it."""
+    from clfd_bench.viz.framing import see_through_bodies
+    from clfd_bench.viz.video import closing_frame
+
+    demos = np.asarray(load_dataset("helloworld").tasks[0].demos)  # 'h'
+    env = get_env("clfd/HelloWorld-h-v3")
+    style = VideoStyle(width=size[0], height=size[1], max_segments=40)
+    result, frame = closing_frame(env, demos[0], 0, demonstration=demos[0], style=style)
+    assert result.success
+    width, height = _line_box(frame)
+    assert max(width, height) >= 0.5, (width, height)
+    print(f"letter spans {width:.0%} x {height:.0%} of {size}")
+    assert min(width, height) >= 0.2, (width, height)
+    assert max(width, height) < 0.95  # a margin: the whole letter is in the frame
+    assert len(see_through_bodies(env.unwrapped)) >= 9  # the arm's links, hand and fingers

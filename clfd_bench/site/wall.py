@@ -2,10 +2,11 @@
 
 Each tile is rendered by :func:`clfd_bench.viz.video.render_run_videos` (its public API only)
 into a folder of its own, whose name carries a key of what the video shows (the run's
-predictions file, the simulator's fingerprint, the tile's size and rate, the demo): a tile
-whose folder already holds an mp4 is reused, so an interrupted site build resumes, and a run
-trained or executed again gets new videos. The video writer renames a finished file into
-place, so a killed build leaves no half-written video.
+predictions file, the simulator's fingerprint, the tile's size and rate, the demo, the
+videos' look): a tile whose folder already holds an mp4 is reused, so an interrupted site
+build resumes, and a run trained or executed again, or a new camera, gets new videos. The
+video writer renames a finished file into place, so a killed build leaves no half-written
+video.
 """
 
 from __future__ import annotations
@@ -53,8 +54,11 @@ class TileResult:
 
 def tile_key(predictions_sha256: str | None, fingerprint: str | None, demo: int,
              width: int, height: int, fps: float) -> str:
-    """A short key of what a tile shows (folder name part)."""
-    text = f"{predictions_sha256}|{fingerprint}|{demo}|{width}x{height}@{fps:g}"
+    """A short key of what a tile shows (folder name part): also the videos' look
+    (:data:`~clfd_bench.viz.video.VIDEO_LOOK`), so a new camera renders the tiles again."""
+    from clfd_bench.viz.video import VIDEO_LOOK
+
+    text = f"{predictions_sha256}|{fingerprint}|{demo}|{width}x{height}@{fps:g}|look{VIDEO_LOOK}"
     return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 

@@ -19,6 +19,8 @@ _ZERO3 = np.zeros(3)
 _EYE9 = np.eye(3).ravel()
 #: Height step (m) between overlapping lines (demonstration < prediction < path / ink).
 _LAYER_STEP = 0.0015
+#: Opacity of the bodies drawn see-through (the writing hand over its letter).
+SEE_THROUGH_ALPHA = 0.12
 
 
 def _subsample(points: np.ndarray, max_segments: int) -> np.ndarray:
@@ -36,9 +38,13 @@ class OverlayRenderer:
         model: the env's ``MjModel``.
         style: a :class:`VideoStyle`.
         camera: a ``clfd_bench.sim.render.CameraSpec``.
+        see_through: ids of bodies drawn at :data:`SEE_THROUGH_ALPHA` opacity, so that what
+            they hide shows through them (a camera that frames the letter looks past the
+            hand writing it).
     """
 
-    def __init__(self, model: Any, style: VideoStyle, camera: Any):
+    def __init__(self, model: Any, style: VideoStyle, camera: Any,
+                 see_through: Sequence[int] = ()):
         import mujoco
 
         from clfd_bench.sim.render import ensure_gl_backend
@@ -65,6 +71,9 @@ class OverlayRenderer:
                          mujoco.mjtRndFlag.mjRND_SKYBOX):
                 flags[flag] = 0
         self.camera = camera.to_mjv() if hasattr(camera, "to_mjv") else camera
+        self._geom_body = np.asarray(model.geom_bodyid)
+        self._see_through = np.zeros(model.nbody, dtype=bool)
+        self._see_through[list(see_through)] = True
         self.line_px = style.line_px or max(2.0, style.height / 120)
         self.static: list[tuple[np.ndarray, tuple[float, ...]]] = []
         self.caption = ""
@@ -127,6 +136,8 @@ class OverlayRenderer:
     def __call__(self, base: Any, tracer: Any) -> np.ndarray:
         self._consume(tracer)
         self.renderer.update_scene(base.data, camera=self.camera)
+        if self._see_through.any():
+            self._fade()
         for layer, (points, rgba) in enumerate(self.static):
             self._segments(zip(points[:-1], points[1:], strict=True), rgba, layer)
         top = len(self.static)
@@ -137,6 +148,14 @@ class OverlayRenderer:
         if self.style.caption and self.caption:
             frame = _caption(frame, self.caption)
         return frame
+
+    def _fade(self) -> None:
+        """Makes the scene's geoms of the see-through bodies translucent."""
+        scene, geom_type = self.renderer.scene, self._mj.mjtObj.mjOBJ_GEOM
+        for k in range(scene.ngeom):
+            geom = scene.geoms[k]
+            if geom.objtype == geom_type and self._see_through[self._geom_body[geom.objid]]:
+                geom.rgba[3] = min(float(geom.rgba[3]), SEE_THROUGH_ALPHA)
 
     def close(self) -> None:
         self.renderer.close()

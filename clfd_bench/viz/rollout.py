@@ -11,13 +11,14 @@ import numpy as np
 
 from clfd_bench.viz.captions import _caption, outcome_caption
 from clfd_bench.viz.framing import (
+    _HAND_REACH,
     _PROP_REACH,
-    _ROBOT_REACH,
     _camera_for,
     _inflate,
     _is_writing,
     _motion_points,
-    _robot_points,
+    _prop_box_points,
+    see_through_bodies,
 )
 from clfd_bench.viz.overlay import _BOARD_LIFT, OverlayRenderer
 from clfd_bench.viz.style import DEMONSTRATION_RGBA, PREDICTION_RGBA, VideoStyle
@@ -43,9 +44,9 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
         style: a :class:`VideoStyle`.
         trace: keep the rollout's step-by-step trace (for rerun logging).
         settle_s: seconds of settling after the trajectory (default: the rollout's).
-        camera: a ``CameraSpec`` (default: one framing the tool's path, the robot and the
-            props wherever this rollout takes them, found by a first rollout without
-            rendering).
+        camera: a ``CameraSpec`` (default: writing, one framing the letter; otherwise one
+            framing the tool's path, the hand and the props wherever this rollout takes them,
+            found by a first rollout without rendering: :mod:`clfd_bench.viz.framing`).
 
     Returns:
         ``(ExecResult, frames written per sink)``; the frame count is
@@ -65,7 +66,7 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
                   else [_motion_points(env, trajectory, demo, settle_s, style.every)])
         extra = np.concatenate([np.zeros((0, 3)), *moving, *(s for s, _ in static[:-1])])
         camera = _camera_for(base, target, extra, style.width / style.height)
-    overlay = OverlayRenderer(base.model, style, camera)
+    overlay = OverlayRenderer(base.model, style, camera, see_through_bodies(base))
     last: list[np.ndarray] = []
     count = [0]
 
@@ -97,7 +98,8 @@ def closing_frame(env: Any, trajectory: Any, demo: int, *, demonstration: Any | 
     """Executes ``trajectory`` from demo ``demo``'s start to its horizon and renders only its
     closing frame: the final state, with the demonstration (green), the prediction (orange)
     and the tool's whole path (blue; writing: the ink) drawn in, from the camera a video of
-    the rollout would use (framing the path, the robot and the props wherever they went).
+    the rollout would use (writing: the letter; otherwise the path, the hand and the props
+    wherever they went).
 
     Args:
         env: a clfd-bench env (no render mode needed; e.g. ``env_pool.get_env(id)``).
@@ -124,12 +126,12 @@ def closing_frame(env: Any, trajectory: Any, demo: int, *, demonstration: Any | 
     if demonstration is not None:
         static.insert(0, (tool_path(base, demonstration), DEMONSTRATION_RGBA))
     moving = [] if _is_writing(base) else [
-        _inflate(tr.hand_pos[::style.every], _ROBOT_REACH), _inflate(_robot_points(base),
-                                                                     _ROBOT_REACH),
+        _inflate(tr.hand_pos[::style.every], _HAND_REACH), _prop_box_points(base),
         *(_inflate(pose[::style.every, :3], _PROP_REACH) for pose in tr.objects.values())]
     extra = np.concatenate([np.zeros((0, 3)), *moving, *(p for p, _ in static[:-1])])
     camera = _camera_for(base, target, extra, style.width / style.height)
-    overlay = OverlayRenderer(base.model, dataclasses.replace(style, caption=False), camera)
+    overlay = OverlayRenderer(base.model, dataclasses.replace(style, caption=False), camera,
+                              see_through_bodies(base))
     try:
         overlay.start(static, expected_steps=len(tr.time),
                       lift=_BOARD_LIFT if _is_writing(base) else 0.0)

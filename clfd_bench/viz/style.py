@@ -6,7 +6,12 @@ from __future__ import annotations
 import dataclasses
 
 __all__ = ["DEMONSTRATION_RGBA", "FAILURE_RGB", "INK_RGBA", "PATH_RGBA", "PREDICTION_RGBA",
-           "SUCCESS_RGB", "VideoStyle"]
+           "SUCCESS_RGB", "VIDEO_LOOK", "VideoStyle"]
+
+VIDEO_LOOK = 2
+"""The version of what a video shows for a given rollout and style (camera, colours, what is
+drawn): raised with every change to it, so that videos kept by key (the site's wall tiles)
+are rendered again. 2: the camera frames the letter (writing) or the props (RoboTasks)."""
 
 PREDICTION_RGBA = (1.0, 0.55, 0.0, 1.0)
 DEMONSTRATION_RGBA = (0.15, 0.7, 0.25, 1.0)

@@ -53,6 +53,7 @@ from clfd_bench.viz.style import (
     PATH_RGBA,
     PREDICTION_RGBA,
     SUCCESS_RGB,
+    VIDEO_LOOK,
     VideoStyle,
 )
 from clfd_bench.viz.writer import VideoWriter
@@ -64,6 +65,7 @@ __all__ = [
     "PATH_RGBA",
     "PREDICTION_RGBA",
     "SUCCESS_RGB",
+    "VIDEO_LOOK",
     "OverlayRenderer",
     "VideoStyle",
     "VideoWriter",
