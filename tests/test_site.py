@@ -341,3 +341,137 @@ def test_run_pages_in_headless_chromium(site, browser):
         _check_media(page, TASKS)
         page.close()
         assert problems == [], path.name
+
+
+# ----------------------------------------------------------------------------- the table
+def test_best_marks_rule():
+    from clfd_bench.site.build import best_marks
+
+    assert best_marks([0.5, 0.9, None, 0.7], "higher") == [None, "best", None, None]
+    assert best_marks([30.0, 10.0, 50.0], "lower") == [None, "best", None]
+    assert best_marks([1.0, 1.0, 0.8], "higher") == ["tie", "tie", None]
+    assert best_marks([1.0, 1.0, 1.0], "higher") == [None] * 3  # nobody stands out
+    assert best_marks([0.4, None], "higher") == [None, None]  # one value: nothing to compare
+    assert best_marks([0.4, 0.5], None) == [None, None]  # a column with no better way
+
+
+def test_directions_come_from_the_glossary():
+    """Every score column of the site says which way is better, and the error-like ones
+    (costs, failures, ranks) are lower-is-better."""
+    from clfd_bench.metrics.glossary import GLOSSARY
+    from clfd_bench.site.build import _COLUMNS
+
+    for key, *_ in _COLUMNS:
+        assert GLOSSARY[key].better in ("higher", "lower"), key
+    lower = {k for k, t in GLOSSARY.items() if t.better == "lower"}
+    assert {"train_time_s", "final_params", "exec_failures", "rank", "dtw"} <= lower
+    assert GLOSSARY["BWT"].better == GLOSSARY["CL_score"].better == "higher"
+
+
+#: A made-up leaderboard of three methods (no runs): hn best by CL_score; sg and ft tied for
+#: the best ACC at the shown precision (1.000 and 0.999 both show 1.00); ft the fastest, the
+#: best BWT and the fewest failures; every MS equal (no mark).
+_SYNTH = {"sg": {"CL_score": 0.70, "ACC": 1.0, "BWT": -0.5, "MS": 1.0, "train_time_s": 30.0},
+          "ft": {"CL_score": 0.50, "ACC": 0.999, "BWT": 0.0, "MS": 1.0, "train_time_s": 10.4},
+          "hn": {"CL_score": 0.90, "ACC": 0.80, "BWT": -0.1, "MS": 1.0, "train_time_s": 50.0}}
+_SYNTH_FAILS = {"sg": 3, "ft": 0, "hn": 5}
+
+
+@pytest.fixture(scope="module")
+def synthetic_site(tmp_path_factory):
+    import json
+
+    from clfd_bench.leaderboard.report import COLUMNS, LEADERBOARD_JSON
+
+    out = tmp_path_factory.mktemp("synthetic")
+    rows = []
+    for rank, method in enumerate(sorted(_SYNTH, key=lambda m: -_SYNTH[m]["CL_score"]), 1):
+        values = _SYNTH[method]
+        rows.append({
+            "rank": rank, "method": method, "runs_ok": 1, "runs_failed": 0, "paper_rank": None,
+            "paper_cl_score": None, "errors": [], "not_provided": [],
+            "exec_failures": {"task": _SYNTH_FAILS[method]},
+            "metrics": {key: {"median": values.get(key), "q1": values.get(key),
+                              "q3": values.get(key),
+                              "values": [values[key]] if key in values else []}
+                        for key, _ in COLUMNS}})
+    doc = {"schema_version": 1, "rows": rows, "paper": {"table": None, "reason": "made up"},
+           "meta": {"dataset": "helloworld", "methods": list(_SYNTH), "profile": "smoke",
+                    "seeds": [0], "orders": [0], "node": "t", "tasks": 2, "sim": True,
+                    "runs": {}, "figures": []}}
+    (out / LEADERBOARD_JSON).write_text(json.dumps(doc), encoding="utf-8")
+    build_site(out, out / "site", videos=False)
+    return out / "site"
+
+
+_COLUMN = """key => {
+  const heads = Array.from(document.querySelectorAll(
+      '#leaderboard-table thead tr:last-child th'));
+  const col = heads.findIndex(th => th.dataset.key === key);
+  return Array.from(document.querySelectorAll('#leaderboard-table tbody tr')).map(tr => {
+    const td = tr.cells[col];
+    const mark = td.querySelector('.mark');
+    return [tr.dataset.method, td.classList.contains('best'), td.classList.contains('tie'),
+            mark ? mark.textContent : null];
+  });
+}"""
+
+
+def test_first_click_sorts_best_first_and_marks_the_best(synthetic_site, browser):
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.goto((synthetic_site / "index.html").as_uri())
+
+    def order() -> list[str]:
+        return [r.get_attribute("data-method")
+                for r in page.query_selector_all("#leaderboard-table tbody tr")]
+
+    def click(key: str) -> list[str]:
+        page.locator(f"#leaderboard-table th[data-key='{key}']").click()
+        return order()
+
+    assert order() == ["hn", "sg", "ft"]  # by rank
+    # Higher is better: the first click puts the highest first, the second reverses.
+    assert click("CL_score") == ["hn", "sg", "ft"]
+    assert page.get_attribute("th[data-key='CL_score']", "aria-sort") == "descending"
+    assert click("CL_score") == ["ft", "sg", "hn"]
+    assert click("BWT") == ["ft", "hn", "sg"]  # 0.0 > -0.1 > -0.5
+    # Lower is better (costs, failures): the lowest first.
+    assert click("train_time_s") == ["ft", "sg", "hn"]
+    assert page.get_attribute("th[data-key='train_time_s']", "aria-sort") == "ascending"
+    assert click("exec_failures") == ["ft", "sg", "hn"]
+    assert "higher is better" in page.get_attribute("th[data-key='ACC']", "title")
+    assert "lower is better" in page.get_attribute("th[data-key='train_time_s']", "title")
+
+    marks = {key: {m: (best, tie, mark) for m, best, tie, mark in page.evaluate(_COLUMN, key)}
+             for key in ("CL_score", "ACC", "MS", "train_time_s", "BWT", "exec_failures")}
+    assert marks["CL_score"] == {"hn": (True, False, "★"), "sg": (False, False, None),
+                                 "ft": (False, False, None)}
+    # A tie at the shown precision is marked on both cells.
+    assert marks["ACC"] == {"sg": (True, True, "★="), "ft": (True, True, "★="),
+                            "hn": (False, False, None)}
+    assert not any(best for best, _, _ in marks["MS"].values())  # all equal: no mark
+    for key in ("train_time_s", "BWT", "exec_failures"):
+        assert [m for m, (best, _, _) in marks[key].items() if best] == ["ft"], key
+    page.close()
+
+
+def test_tables_fit_a_laptop_and_scroll_under_their_key_columns(synthetic_site, browser):
+    """At 1280 px nothing is off the page; in a narrow window the leaderboard scrolls inside
+    its own box, its rank and method columns staying in view."""
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.goto((synthetic_site / "index.html").as_uri())
+    assert page.evaluate("document.documentElement.scrollWidth") <= 1280
+    page.set_viewport_size({"width": 640, "height": 800})
+    assert page.evaluate("document.documentElement.scrollWidth") <= 640
+    box = page.locator("#leaderboard .scroll")
+    assert box.evaluate("b => b.scrollWidth > b.clientWidth")  # the table scrolls in its box
+    method = page.locator("#leaderboard-table tbody tr:first-child td.key-method")
+    rank = page.locator("#leaderboard-table tbody tr:first-child td.key-rank")
+    runs = page.locator("#leaderboard-table tbody tr:first-child td:nth-child(3)")
+    before = [c.bounding_box()["x"] for c in (rank, method, runs)]
+    box.evaluate("b => { b.scrollLeft = 300; }")
+    assert box.evaluate("b => b.scrollLeft") > 0
+    after = [c.bounding_box()["x"] for c in (rank, method, runs)]
+    assert after[:2] == pytest.approx(before[:2], abs=1)  # (border-collapse: half pixels)
+    assert after[2] < before[2] - 100  # the other columns scrolled
+    page.close()

@@ -29,11 +29,21 @@ class Term:
             kind, an error metric, ...); unique across the glossary.
         name: the name as a table or figure shows it.
         definition: one sentence or two, Markdown (formulas in backticks).
+        better: which way a value is better, for a column of numbers that ranks something:
+            ``"higher"`` or ``"lower"``; None when neither is (a count of runs, a figure).
+            The results site sorts a column best-first on the first click and marks its best
+            value with it.
     """
 
     key: str
     name: str
     definition: str
+    better: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.better not in (None, "higher", "lower"):
+            raise ValueError(f"glossary term {self.key!r}: better must be 'higher', 'lower' "
+                             f"or None, got {self.better!r}")
 
 
 _CRITERIA = "ACC, REM, MS, TE, FS and SSS"
@@ -58,11 +68,13 @@ SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
         (
             Term("rank", "#",
                  "rank by median CL_score, best first; rows without a CL_score come after "
-                 "those with one, ordered by median ACC; rows without a finished run last."),
+                 "those with one, ordered by median ACC; rows without a finished run last.",
+                 better="lower"),
             Term("paper_rank", "paper #",
                  "the method's rank by CL_score in the paper's CL table for the same dataset, "
                  "NODE variant and methods (equal printed CL_scores share a rank); shown only "
-                 "when such a table exists."),
+                 "when such a table exists.",
+                 better="lower"),
             Term("paper_cl_score", "paper CL_score",
                  "the CL_score the paper's matching table prints for the method "
                  "(`leaderboard.md`; on the site, the grey number under each cell is the "
@@ -81,54 +93,71 @@ SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
                  "estimated."),
             Term("CL_score", "CL_score",
                  f"the mean of {_CRITERIA} (the paper writes a sum; its tables print the "
-                 "mean)."),
+                 "mean).",
+                 better="higher"),
             Term("CL_stability", "CL_stab",
-                 f"CL_stability: 1 − the sample standard deviation (ddof 1) of {_CRITERIA}."),
+                 f"CL_stability: 1 − the sample standard deviation (ddof 1) of {_CRITERIA}.",
+                 better="higher"),
             Term("ACC", "ACC",
                  "accuracy: the mean of `R[i, j]` over all `i ≥ j` (trajectory R: DTW at most "
-                 "the threshold)."),
-            Term("REM", "REM", "remembering: `1 − |min(BWT, 0)|`."),
+                 "the threshold).",
+                 better="higher"),
+            Term("REM", "REM", "remembering: `1 − |min(BWT, 0)|`.",
+                 better="higher"),
             Term("BWT", "BWT",
                  "backward transfer: the mean over `i > j` of `R[i, j] − R[j, j]`, in [−1, 1]; "
-                 "negative means forgetting; empty with one task; not part of CL_score."),
+                 "negative means forgetting; empty with one task; not part of CL_score.",
+                 better="higher"),
             Term("MS", "MS",
                  "model size efficiency: `min(1, (1/M) Σ_i Mem(θ_0) / Mem(θ_i))`, "
                  "`Mem(θ_i)` the number of parameters kept, after learning task i, to "
-                 "reproduce every task learned so far."),
+                 "reproduce every task learned so far.",
+                 better="higher"),
             Term("TE", "TE",
                  "time efficiency: `min(1, T_0 / M · Σ_i 1 / T_i)`, `T_i` the wall-clock "
-                 "seconds spent learning task i."),
+                 "seconds spent learning task i.",
+                 better="higher"),
             Term("FS", "FS",
                  "final model size: `1 − Mem(θ_{M−1}) / Mem_max`, `Mem_max` the largest final "
                  "parameter count among the leaderboard's methods (each method's final count is "
-                 "the median over its runs)."),
+                 "the median over its runs).",
+                 better="higher"),
             Term("SSS", "SSS",
                  "sample storage size efficiency: `1 − min(1, (1/M) Σ_i stored_i / total)`, "
                  "`stored_i` the demonstration samples kept after learning task i, "
-                 "`total` the training samples of all M tasks."),
+                 "`total` the training samples of all M tasks.",
+                 better="higher"),
             Term("exec_ACC", "exec ACC",
                  "ACC of the execution R: `R[i, j]` is the fraction of task j's demos whose "
                  "prediction after task i, executed on the simulated Panda from the demo's "
-                 "start, meets the task's success criterion."),
-            Term("exec_REM", "exec REM", "REM of the execution R: `1 − |min(exec BWT, 0)|`."),
+                 "start, meets the task's success criterion.",
+                 better="higher"),
+            Term("exec_REM", "exec REM", "REM of the execution R: `1 − |min(exec BWT, 0)|`.",
+                 better="higher"),
             Term("exec_BWT", "exec BWT",
-                 "BWT of the execution R: the mean over `i > j` of `R[i, j] − R[j, j]`."),
+                 "BWT of the execution R: the mean over `i > j` of `R[i, j] − R[j, j]`.",
+                 better="higher"),
             Term("exec_CL_score", "exec CL_score",
                  "CL_score with exec ACC and exec REM in place of ACC and REM (MS, TE, FS and "
-                 "SSS unchanged)."),
+                 "SSS unchanged).",
+                 better="higher"),
             Term("train_time_s", "train s",
-                 "wall-clock seconds of training, summed over the run's tasks."),
+                 "wall-clock seconds of training, summed over the run's tasks.",
+                 better="lower"),
             Term("train_cpu_s", "train CPU s",
                  "CPU seconds of the training process, summed over the run's tasks (when every "
-                 "task recorded them)."),
+                 "task recorded them).",
+                 better="lower"),
             Term("final_params", "params",
-                 "the parameter count after the last task (RoboTasks: of the position model)."),
+                 "the parameter count after the last task (RoboTasks: of the position model).",
+                 better="lower"),
             Term("exec_failures", "exec failures",
                  "the executions of the method's runs that failed, counted by kind (reflex, "
                  "tracking, unreachable, collision, blowup, diverged, task: see the failure "
                  "kinds); an execution counts its first failure. Below them, the success "
                  "checks behind the task failures, each with how often it failed (an execution "
-                 "that fails two counts for both)."),
+                 "that fails two counts for both).",
+                 better="lower"),
         ),
     ),
     (
@@ -140,17 +169,21 @@ SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
                  "dynamic time warping distance: the sum of the Euclidean distances between "
                  "matched points along the best warping path (steps (1, 0), (0, 1), (1, 1), "
                  "first points to last points); not normalised, so it grows with the "
-                 "trajectory's length."),
+                 "trajectory's length.",
+                 better="lower"),
             Term("frechet", "Fréchet",
                  "discrete Fréchet distance: the smallest, over monotone couplings of the two "
-                 "point sequences, of the largest Euclidean distance between coupled points."),
+                 "point sequences, of the largest Euclidean distance between coupled points.",
+                 better="lower"),
             Term("swept_area", "swept area",
                  "the sum over `t` of the area of the quadrilateral `(pred[t], pred[t+1], "
-                 "demo[t+1], demo[t])`, in squared length units."),
+                 "demo[t+1], demo[t])`, in squared length units.",
+                 better="lower"),
             Term("quaternion", "quaternion error (E_q)",
                  "`E_q = 1/(3T) · Σ_t ‖2 Log(q_t ∗ conj(q̂_t))‖₁`: the mean absolute component "
                  "of the rotation vector from the predicted to the demo's orientation, in "
-                 "degrees (RoboTasks, RoboTasks9)."),
+                 "degrees (RoboTasks, RoboTasks9).",
+                 better="lower"),
             Term("threshold", "threshold",
                  "a prediction is accurate when its error is at most this: DTW 2191 (LASA "
                  "units), 1821 cm (HelloWorld), 7131 cm (RoboTasks; RoboTasks9 uses the same) "

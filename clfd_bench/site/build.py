@@ -30,16 +30,17 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import json
+import math
 import re
 import shutil
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from clfd_bench.io import atomic_write_bytes, atomic_write_text
 from clfd_bench.leaderboard.report import format_cell as _fmt
-from clfd_bench.metrics.glossary import tooltip
+from clfd_bench.metrics.glossary import GLOSSARY, tooltip
 from clfd_bench.site.wall import (
     WALL_STYLE,
     TileJob,
@@ -53,7 +54,7 @@ from clfd_bench.studies.profile_compare import caption as comparison_caption
 from clfd_bench.studies.profile_compare import read_comparison
 from clfd_bench.studies.profile_compare import table as comparison_table
 
-__all__ = ["WALL_STYLE", "SiteResult", "build_site"]
+__all__ = ["WALL_STYLE", "SiteResult", "best_marks", "build_site"]
 
 #: (key in leaderboard.json rows' metrics, header, group, key in the paper's CL table).
 _COLUMNS = (
@@ -132,6 +133,59 @@ def _flatten(value: Any, prefix: str = "") -> list[tuple[str, str]]:
 
 
 # ----------------------------------------------------------------------------- the table
+def _shown(value: float | None, key: str) -> float | None:
+    """``value`` as its cell shows it (rounded to the cell's precision,
+    :func:`~clfd_bench.leaderboard.report.format_cell`), None for no value."""
+    if value is None or math.isnan(value):
+        return None
+    return float(_fmt(value, key).replace(",", ""))
+
+
+def best_marks(values: Sequence[float | None], better: str | None) -> list[str | None]:
+    """Which cells of a column to mark: ``"best"`` (the column's best value, alone), ``"tie"``
+    (tied for the best: equal to it at the shown precision) or None, per value.
+
+    ``values`` are as shown (:func:`_shown`; None: an empty cell); ``better`` is the column's
+    direction from the glossary (``"higher"``, ``"lower"``, or None: nothing is marked).
+    Nothing is marked either when fewer than two cells have a value or when every value is
+    the best (a column where all tie singles nobody out)."""
+    given = [v for v in values if v is not None]
+    if better is None or len(given) < 2:
+        return [None] * len(values)
+    best = max(given) if better == "higher" else min(given)
+    n_best = sum(v == best for v in given)
+    if n_best == len(given):
+        return [None] * len(values)
+    mark = "best" if n_best == 1 else "tie"
+    return [mark if v is not None and v == best else None for v in values]
+
+
+def _better(key: str) -> str | None:
+    term = GLOSSARY.get(key)
+    return term.better if term is not None else None
+
+
+def _header_tip(key: str) -> str:
+    """A header's tooltip: the glossary's definition and which way is better."""
+    better = _better(key)
+    return tooltip(key) + (f" ({better} is better)" if better else "")
+
+
+def _mark_column(cells: list[dict[str, Any]], shown: list[float | None], better: str | None,
+                 names: list[str]) -> None:
+    """Sets ``mark`` and ``mark_tip`` of one column's cells (:func:`best_marks`)."""
+    marks = best_marks(shown, better)
+    tied = [name for name, mark in zip(names, marks, strict=True) if mark == "tie"]
+    for cell, mark, name in zip(cells, marks, names, strict=True):
+        cell["mark"] = mark
+        if mark == "best":
+            cell["mark_tip"] = f"the column's best ({better} is better)"
+        elif mark == "tie":
+            others = ", ".join(n for n in tied if n != name)
+            cell["mark_tip"] = (f"tied for the column's best with {others}: equal at the "
+                                f"shown precision ({better} is better)")
+
+
 def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
            pages: dict[str, list[tuple[str, str]]]) -> dict[str, Any]:
     """The leaderboard table's header groups and rows (cells with text and sort value)."""
@@ -154,6 +208,7 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
                    f"{n} run{'s' if n != 1 else ''}") if median is not None else ""
             cells.append({
                 "text": text, "sort": "" if median is None else f"{median:.9g}", "tip": tip,
+                "shown": _shown(median, key),
                 "group": group,
                 "paper": (f"{ours[paper_key]:.2f}" if paper_key and paper_key in ours else None),
             })
@@ -167,16 +222,26 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             "failed_checks": ", ".join(f"{name} {n}" for name, n in
                                        (row.get("exec_failed_checks") or {}).items()),
             "errors": row.get("errors") or [], "pages": pages.get(method, []),
+            "fails_cell": {"mark": None},
         })
+    names = [r["name"] for r in rows]
+    for c, (key, _, _, _) in enumerate(_COLUMNS):
+        column = [r["cells"][c] for r in rows]
+        _mark_column(column, [cell["shown"] for cell in column], _better(key), names)
+    _mark_column([r["fails_cell"] for r in rows],
+                 [None if r["failures_total"] is None else float(r["failures_total"])
+                  for r in rows], _better("exec_failures"), names)
     groups = []
     for _, _, group, _ in _COLUMNS:
         if groups and groups[-1]["key"] == group:
             groups[-1]["span"] += 1
         else:
             groups.append({"key": group, "title": _GROUPS[group], "span": 1})
-    return {"groups": groups, "columns": [{"key": k, "head": h, "group": g, "title": tooltip(k)}
-                                          for k, h, g, _ in _COLUMNS],
-            "tips": {k: tooltip(k) for k in _HEADER_KEYS},
+    return {"groups": groups,
+            "columns": [{"key": k, "head": h, "group": g, "title": _header_tip(k),
+                         "better": _better(k) or ""} for k, h, g, _ in _COLUMNS],
+            "tips": {k: _header_tip(k) for k in _HEADER_KEYS},
+            "better": {k: _better(k) or "" for k in _HEADER_KEYS},
             "rows": rows, "kinds": kinds}
 
 

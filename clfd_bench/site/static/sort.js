@@ -1,5 +1,7 @@
-// Sorts a table.sortable by the clicked column: numbers by value (empty cells last),
-// text alphabetically; a second click reverses the order.
+// Sorts a table.sortable by the clicked column: numbers by value (empty cells last), text
+// alphabetically. The first click on a column puts its best values first: a header's
+// data-better ("higher" or "lower", from the glossary) says which way is better; without
+// it, ascending. A click on the column already sorted reverses it.
 "use strict";
 document.querySelectorAll("table.sortable").forEach(function (table) {
   var heads = table.tHead.rows[table.tHead.rows.length - 1].cells;
@@ -8,7 +10,13 @@ document.querySelectorAll("table.sortable").forEach(function (table) {
     th.tabIndex = 0;
     var sort = function () {
       var numeric = th.dataset.type === "number";
-      var dir = th.getAttribute("aria-sort") === "ascending" ? -1 : 1;
+      var current = th.getAttribute("aria-sort");
+      var dir;
+      if (current) {
+        dir = current === "ascending" ? -1 : 1;
+      } else {
+        dir = th.dataset.better === "higher" ? -1 : 1;
+      }
       var body = table.tBodies[0];
       var rows = Array.prototype.slice.call(body.rows);
       var key = function (row) {
