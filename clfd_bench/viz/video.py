@@ -10,10 +10,11 @@ Drawn into the scene (MuJoCo user geoms added after ``update_scene``): the predi
 and the demonstration (green) as the tool should follow them, the tool's path so far (blue;
 for writing, the ink where the pen touched the board, dark blue). A caption names the run's
 method, the task and the demo (:func:`run_caption`); the closing frames add the outcome and a
-green (success) or red (failure) border (:func:`outcome_caption`). The camera frames the robot
-and the props wherever the rollout takes them (found by a first rollout without rendering) at
-the frame's aspect (:func:`frame_camera`). :func:`render_comparison_video` puts several runs'
-rollouts of one task side by side, each tile rendered at its own size.
+green (success) or red (failure) border (:func:`outcome_caption`). The camera frames what the
+rollout is judged by at the frame's aspect (:mod:`clfd_bench.viz.framing`): a writing task's
+letter, the robot drawn see-through over it; a RoboTasks task's props, wherever the rollout
+takes them (found by a first rollout without rendering). :func:`render_comparison_video` puts
+several runs' rollouts of one task side by side, each tile rendered at its own size.
 
 This module is the front door: it renders a run's videos and re-exports the public names of
 the modules that do the parts, one concept each: :mod:`clfd_bench.viz.style` (how a video
