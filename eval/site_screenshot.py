@@ -22,8 +22,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("site", type=Path, help="the site's folder (holds index.html)")
     parser.add_argument("out", type=Path, help="PNG of the page's top")
-    parser.add_argument("--width", type=int, default=1500)
-    parser.add_argument("--height", type=int, default=1000)
+    parser.add_argument("--width", type=int, default=1280, help="a laptop's window (default)")
+    parser.add_argument("--height", type=int, default=800)
     parser.add_argument("--browser", default="/usr/bin/chromium")
     args = parser.parse_args()
     from playwright.sync_api import sync_playwright
