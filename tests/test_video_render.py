@@ -248,3 +248,21 @@ def test_a_letter_fills_the_frame(size):
     assert min(width, height) >= 0.2, (width, height)
     assert max(width, height) < 0.95  # a margin: the whole letter is in the frame
     assert len(see_through_bodies(env.unwrapped)) >= 9  # the arm's links, hand and fingers
+
+
+def test_a_closing_caption_without_the_reason_leaves_the_frame_visible():
+    """``caption_reason=False`` (the site's wall tiles, whose page prints the reason) keeps the
+    failed rollout's closing caption to one line: less of the frame under its dark veil."""
+    import dataclasses
+
+    wrong = np.asarray(load_dataset("helloworld").tasks[1].demos)[0]  # an 'e' in the 'h' env
+    env = get_env("clfd/HelloWorld-h-v3")
+    dark = []
+    for reason in (True, False):
+        frames: list[np.ndarray] = []
+        style = dataclasses.replace(STYLE, hold_s=1.0, caption_reason=reason)
+        result, _ = render_rollout(env, wrong, 0, [frames.append], caption="SG · 'h'",
+                                   style=style)
+        assert not result.success
+        dark.append(int((frames[-1].max(axis=-1) < 120).sum()))  # the veil: the board x 0.35
+    assert dark[1] < dark[0] / 2, dark

@@ -58,7 +58,8 @@ def tile_key(predictions_sha256: str | None, fingerprint: str | None, demo: int,
     (:data:`~clfd_bench.viz.video.VIDEO_LOOK`), so a new camera renders the tiles again."""
     from clfd_bench.viz.video import VIDEO_LOOK
 
-    text = f"{predictions_sha256}|{fingerprint}|{demo}|{width}x{height}@{fps:g}|look{VIDEO_LOOK}"
+    text = (f"{predictions_sha256}|{fingerprint}|{demo}|{width}x{height}@{fps:g}|look{VIDEO_LOOK}"
+            "|no-reason")
     return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 
@@ -112,7 +113,10 @@ def _render(job: TileJob) -> TileResult:
             warnings.simplefilter("always")
             paths = render_run_videos(
                 job.run_dir, task=job.task, demo=job.demo, out_dir=job.out_dir,
-                style=VideoStyle(width=job.width, height=job.height, fps=job.fps),
+                # the page prints a failure's reason under its tile: over the tile's closing
+                # frames, wrapped small, it would hide the letter
+                style=VideoStyle(width=job.width, height=job.height, fps=job.fps,
+                                 caption_reason=False),
                 all_tasks_video=False, hello_world=False)
     except Exception as exc:  # one tile's failure is shown on its tile, not fatal to the site
         return TileResult(job, None, f"{type(exc).__name__}: {exc}",

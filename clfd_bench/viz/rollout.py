@@ -83,6 +83,8 @@ def render_rollout(env: Any, trajectory: Any, demo: int, sinks: Sequence[Callabl
                          frame_hook=FrameHook(overlay, sink, style.every))
         if style.hold_frames and last:
             text, border = outcome_caption(caption, result)
+            if not style.caption_reason:
+                text = text.split("\n", 1)[0]
             held = _caption(last[0], text if style.caption else None, border=border)
             for _ in range(style.hold_frames):
                 for s in sinks:

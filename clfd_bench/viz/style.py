@@ -35,6 +35,9 @@ class VideoStyle:
         max_segments: most line segments drawn per path (paths are subsampled to it).
         line_px: line width in pixels (default: height / 120).
         caption: draw a caption (run point, outcome) into the frames.
+        caption_reason: the closing caption of a failed rollout adds the env's reason (off:
+            only "failed (<kind>)", e.g. for a small tile whose page prints the reason: a
+            long reason wrapped over a small frame hides it).
     """
 
     width: int = 1280
@@ -46,6 +49,7 @@ class VideoStyle:
     max_segments: int = 150
     line_px: float | None = None
     caption: bool = True
+    caption_reason: bool = True
 
     def __post_init__(self) -> None:
         if self.width % 2 or self.height % 2 or self.width < 16 or self.height < 16:
