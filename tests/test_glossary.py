@@ -123,12 +123,14 @@ def test_every_site_column_header_shows_its_definition():
     parser = _Headers()
     parser.feed(_index_html())
     heads = parser.rows[-1]
-    keys = ["rank", "paper_rank", "method", "runs", *(k for k, *_ in build._COLUMNS),
+    keys = ["rank", "method", "paper_rank", "runs", *(k for k, *_ in build._COLUMNS),
             "exec_failures"]
-    assert [h["text"] for h in heads][:4] == ["#", "paper #", "method", "runs"]
+    assert [h["text"] for h in heads][:4] == ["#", "method", "paper #", "runs"]
     assert len(heads) == len(keys)
     for head, key in zip(heads, keys, strict=True):
         assert head["title"], f"site column {head['text']!r} has no tooltip"
-        assert head["title"] == glossary.tooltip(key), head["text"]
+        better = glossary.GLOSSARY[key].better  # and which way is better, where one is
+        assert head["title"] == glossary.tooltip(key) + (
+            f" ({better} is better)" if better else ""), head["text"]
     # the tooltips are plain text: Markdown's backticks and links are gone
     assert not any("`" in h["title"] or "](" in h["title"] for h in heads)
