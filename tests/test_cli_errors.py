@@ -8,8 +8,10 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 CLI = [sys.executable, "-m", "clfd_bench.cli.main"]
+_CONSOLE = "import sys; from clfd_bench.cli.main import main; sys.exit(main())"
 SMOKE = ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "smoke", "--no-sim"]
 
 
@@ -52,8 +54,12 @@ def test_replay_names_the_closest_env_and_takes_ids_without_namespace():
 
 def test_ctrl_c_says_how_to_resume(tmp_path):
     out = tmp_path / "run"
+    # the console script, as a user runs it: under `python -m`, runpy sometimes reports a
+    # handled Ctrl-C as an unhandled one and the process ends by SIGINT (-2) after the line
+    script = Path(sys.executable).with_name("clfd-bench")
+    cmd = [str(script)] if script.exists() else [sys.executable, "-c", _CONSOLE]
     proc = subprocess.Popen(
-        CLI + ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "fast",
+        cmd + ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "fast",
                "--tasks", "1", "--no-sim", "--out", str(out)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "CLFD_NO_PROGRESS": "1"},
