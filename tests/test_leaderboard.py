@@ -48,6 +48,10 @@ def test_local_grid_writes_tables_and_figures(local_grid):
     main_table = md.split("## Executions that failed")[0]
     assert main_table.count("| SG |") == 1 and main_table.count("| HN |") == 1
     assert "## Executions that failed, by kind" in md  # the grid ran with simulation
+    for spec in result.specs:  # each run's worker: the library's entry point, output logged
+        log = (spec.run_dir(out) / "train.log").read_text()
+        assert "-m clfd_bench.harness.worker {" in log and "clfd_bench.cli" not in log
+        assert "executed in simulation after task 1" in log and "done: " in log
     table = _table(out)
     assert set(table) == {"sg", "hn"}
     assert table["sg"]["ACC"] and table["hn"]["exec_ACC"]
@@ -83,14 +87,14 @@ def test_half_finished_grid_resumes_without_retraining(tmp_path):
 
 
 def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
-    original = RunSpec.train_argv
+    original = RunSpec.worker_argv
 
     def argv(self, root):
         if self.method == "hn":
             return [sys.executable, "-c", "raise SystemExit('boom: injected failure')"]
         return original(self, root)
 
-    monkeypatch.setattr(RunSpec, "train_argv", argv)
+    monkeypatch.setattr(RunSpec, "worker_argv", argv)
     result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
     assert [o.spec.method for o in result.failed] == ["hn"]
     assert "boom: injected failure" in result.failed[0].error
@@ -119,8 +123,7 @@ def test_overrides_name_the_run_and_reach_training(tmp_path):
     assert variant.run_dir(tmp_path) != plain.run_dir(tmp_path)
     assert variant.name.endswith("_beta=0.0042")
     assert RunSpec(**json.loads(json.dumps(variant.to_dict()))) == variant  # Ray/failed.json
-    argv = variant.train_argv(tmp_path)
-    sets = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+    sets = list(variant.job(tmp_path).train.overrides)
     assert sets == ["beta=0.0042"]
     config = resolve_config("hn", "helloworld", "smoke", overrides=sets)
     assert config.to_dict()["parts"]["position"]["beta"] == pytest.approx(0.0042)

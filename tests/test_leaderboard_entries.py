@@ -25,10 +25,8 @@ def test_entry_runs_carry_their_node_and_settings(tmp_path):
     # Same method folder, different runs.
     assert hn.name == "lasa/hn/fast_nodet_o0_s0"
     assert hn_s.name == "lasa/hn/fast_nodes_o0_s0_hnet_reg=sampled"
-    argv = hn_s.train_argv(tmp_path)
-    assert argv[argv.index("--node") + 1] == "s"
-    assert argv[argv.index("--set") + 1] == "hnet_reg=sampled"
-    assert argv[argv.index("--method") + 1] == "hn"
+    train = hn_s.job(tmp_path).train
+    assert (train.node, train.overrides, train.method) == ("s", ("hnet_reg=sampled",), "hn")
     # Executors ship specs as plain data: the entry survives the round trip.
     assert RunSpec(**hn_s.to_dict()) == hn_s
     # The entry's node wins over the grid's.

@@ -66,8 +66,7 @@ def test_draw_is_recorded_in_the_run_names(tmp_path):
     for draw, spec in zip(draws, specs, strict=True):
         for key, text in draw.values:
             assert f"_{key}={text}" in spec.name
-            argv = spec.train_argv(tmp_path)
-            assert argv[argv.index(f"{key}={text}") - 1] == "--set"
+            assert f"{key}={text}" in spec.job(tmp_path).train.overrides
             assert float(text) == draw.value(key)
         assert spec.name.startswith(f"lasa/{draw.method}/fast_nodet_o0_s7_k5_nosim_")
 

@@ -1,7 +1,9 @@
 """Executors: run the grid's training commands on local processes or on a Ray cluster.
 
-Both run exactly the same command (``clfd-bench train ...``) with the same environment
-(``CLFD_THREADS=1``, no progress bars), so they give the same results. A run that
+Both run exactly the same command, a grid worker (``python -m clfd_bench.harness.worker JOB``,
+:mod:`clfd_bench.harness.worker`, which runs the run with :func:`clfd_bench.harness.run.run`),
+with the same environment (``CLFD_THREADS=1``, no progress bars), so they give the same
+results; the worker's output is appended to the run's ``train.log``. A run that
 crashes is recorded in ``<run_dir>/failed.json`` with the end of its log and does not stop
 the grid.
 
@@ -106,7 +108,7 @@ def _record(spec: RunSpec, root: Path, code: int, tail: str, seconds: float) -> 
 
 def _local_one(spec: RunSpec, root: Path) -> RunOutcome:
     start = time.perf_counter()
-    code, tail = _run_command(spec.train_argv(root), spec.run_dir(root))
+    code, tail = _run_command(spec.worker_argv(root), spec.run_dir(root))
     return _record(spec, root, code, tail, time.perf_counter() - start)
 
 
@@ -176,7 +178,7 @@ def _remote_train(spec_dict: dict, payload: bytes) -> tuple[int, str, bytes, flo
         root = Path(tmp)
         run_dir = spec.run_dir(root)
         _unpack(payload, run_dir)
-        code, tail = _run_command(spec.train_argv(root), run_dir)
+        code, tail = _run_command(spec.worker_argv(root), run_dir)
         return code, tail, _pack(run_dir), time.perf_counter() - start
 
 

@@ -2,21 +2,22 @@
 
 A run is identified by :class:`RunSpec`; its directory under the leaderboard's output is
 derived from the spec alone, so starting a leaderboard again finds finished runs and skips
-them, and a half-finished run resumes from its last finished task (the training command
-resumes by itself). Whether a run is finished is the run directory's to say
-(:meth:`clfd_bench.runs.RunDir.status`): every task trained and, with simulation, every
-prediction executed by the current simulator.
+them, and a half-finished run resumes from its last finished task (a grid worker,
+:mod:`clfd_bench.harness.worker`, resumes it by itself). Whether a run is finished is the
+run directory's to say (:meth:`clfd_bench.runs.RunDir.status`): every task trained and,
+with simulation, every prediction executed by the current simulator.
 """
 
 from __future__ import annotations
 
 import re
-import sys
 from dataclasses import asdict, dataclass
 from itertools import product
 from pathlib import Path
 from typing import Any
 
+from clfd_bench.harness.run import TrainSpec
+from clfd_bench.harness.worker import Job
 from clfd_bench.runs import RunDir, RunStatus
 
 __all__ = ["RunSpec", "make_grid", "reread_simulator", "run_state", "run_status"]
@@ -101,39 +102,30 @@ class RunSpec:
         """The run's directory below ``root/runs``."""
         return Path(root) / "runs" / self.name
 
-    def train_argv(self, root: Path) -> list[str]:
-        """The ``clfd-bench train`` command line that performs (or resumes) this run."""
-        argv = [
-            sys.executable, "-m", "clfd_bench.cli.main", "train",
-            "--method", self.method, "--dataset", self.dataset, "--profile", self.profile,
-            "--seed", str(self.seed), "--order", str(self.order), "--node", self.node,
-            "--out", str(self.run_dir(root)),
-        ]  # fmt: skip
-        if self.tasks is not None:
-            argv += ["--tasks", str(self.tasks)]
-        if not self.sim:
-            argv.append("--no-sim")
-        if self.config_file is not None:
-            argv += ["--config", self.config_file]
-        for setting in self.settings:
-            argv += ["--set", setting]
-        return argv
+    def train_spec(self) -> TrainSpec:
+        """What the run trains (:class:`~clfd_bench.harness.run.TrainSpec`)."""
+        return TrainSpec(self.method, self.dataset, self.profile, self.seed, self.order,
+                         self.node, self.tasks, tuple(self.settings), self.config_file)
+
+    def job(self, root: Path) -> Job:
+        """The grid worker's job that performs (or resumes) this run below ``root``."""
+        return Job(self.train_spec(), str(self.run_dir(root)), self.sim)
+
+    def worker_argv(self, root: Path) -> list[str]:
+        """The command that performs (or resumes) this run below ``root``: a grid worker
+        (``python -m clfd_bench.harness.worker JOB``, :mod:`clfd_bench.harness.worker`)."""
+        return self.job(root).argv()
 
     @property
     def settings(self) -> list[str]:
         """The overrides as ``key=value`` strings, as ``--set`` takes them."""
         return [f"{key}={value}" for key, value in self.overrides]
 
-    def config(self):
+    def config(self, arg_names: dict[str, str] | None = None):
         """The run's resolved configuration (:class:`~clfd_bench.harness.config.RunConfig`);
-        raises ``ConfigError`` for an unknown key or value before anything is trained."""
-        from clfd_bench.harness.config import resolve_config
-
-        return resolve_config(
-            self.method, self.dataset, self.profile, seed=self.seed, order=self.order,
-            node=self.node, tasks=self.tasks, overrides=self.settings,
-            config_file=self.config_file,
-        )  # fmt: skip
+        raises ``ConfigError`` for an unknown key or value before anything is trained
+        (``arg_names``: the options run-level values came from, named in its errors)."""
+        return self.train_spec().config(arg_names)
 
     def num_tasks(self) -> int:
         """How many tasks the run learns: ``tasks`` or all of the dataset's."""

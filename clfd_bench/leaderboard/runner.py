@@ -66,18 +66,14 @@ def validate_plan(specs: list[RunSpec], out: Path) -> None:
         ConfigError, UnknownMethodError, InputError, DatasetError: one line naming the bad
             value and where it came from (``clfd-bench`` prints it and exits with code 2).
     """
-    from clfd_bench.harness.config import ConfigError, resolve_config
+    from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.validate import check_dataset, check_out_dir
 
     out = Path(out)
     check_out_dir(out)
     runs_root = (out / "runs").resolve()
     for spec in specs:
-        resolve_config(
-            spec.method, spec.dataset, spec.profile, seed=spec.seed, order=spec.order,
-            node=spec.node, tasks=spec.tasks, overrides=spec.settings, arg_names=GRID_ARG_NAMES,
-            config_file=spec.config_file,
-        )  # fmt: skip
+        spec.config(GRID_ARG_NAMES)
         if not spec.run_dir(out).resolve().is_relative_to(runs_root):  # pragma: no cover
             raise ConfigError(f"run {spec.name!r} would be written outside {out}/runs")
     for dataset, order in sorted({(s.dataset, s.order) for s in specs}):
