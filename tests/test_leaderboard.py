@@ -8,11 +8,14 @@ import sys
 
 import pytest
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.leaderboard.runner import run_leaderboard
 
-GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[0], orders=[0],
-            tasks=2, sim=True)
+GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[0], orders=[0])
+
+
+def _options(**where) -> GridOptions:
+    return GridOptions(tasks=2, sim=True, **where)
 
 # Wall-clock columns differ between any two runs; everything else must be identical.
 CLOCK_KEYS = {"TE", "CL_score", "CL_stability", "exec_CL_score", "train_time_s", "train_cpu_s"}
@@ -34,7 +37,7 @@ def _run_errors(out, spec: RunSpec):
 @pytest.fixture(scope="module")
 def local_grid(tmp_path_factory):
     out = tmp_path_factory.mktemp("local")
-    result = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    result = run_leaderboard(**GRID, out=out, options=_options(executor="local", workers=2))
     return out, result
 
 
@@ -61,7 +64,7 @@ def test_rerun_trains_nothing_twice(local_grid):
     out, _ = local_grid
     spec = RunSpec("helloworld", "sg", "smoke", 0, 0, "t", 2, True)
     before = spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns
-    again = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    again = run_leaderboard(**GRID, out=out, options=_options(executor="local", workers=2))
     assert again.trained == [] and len(again.skipped) == 2
     assert spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns == before
 
@@ -76,7 +79,7 @@ def test_half_finished_grid_resumes_without_retraining(tmp_path):
                  "--tasks", "1", "--quiet", "--out", str(hn.run_dir(tmp_path))]) == 0
     first = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
     assert len(first["train_time_s"]) == 1
-    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="local", workers=1))
     assert sorted(s.method for s in result.trained) == ["hn", "sg"] and not result.failed
     final = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
     assert final["complete"] and len(final["train_time_s"]) == 2
@@ -95,7 +98,7 @@ def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
         return original(self, root)
 
     monkeypatch.setattr(RunSpec, "worker_argv", argv)
-    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="local", workers=1))
     assert [o.spec.method for o in result.failed] == ["hn"]
     assert "boom: injected failure" in result.failed[0].error
     md = (tmp_path / "leaderboard.md").read_text()
@@ -107,7 +110,7 @@ def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
 def test_ray_executor_gives_identical_tables(local_grid, tmp_path):
     pytest.importorskip("ray", reason="Ray is the optional extra clfd-bench[dist]")
     out, _ = local_grid
-    result = run_leaderboard(**GRID, out=tmp_path, executor="ray")
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="ray"))
     assert len(result.trained) == 2 and not result.failed
     assert _table(tmp_path) == _table(out)
     for spec in result.specs:

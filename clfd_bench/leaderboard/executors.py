@@ -34,7 +34,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, EXECUTORS, GridOptions, RunSpec
 from clfd_bench.procs import PARENT_ENV
 from clfd_bench.runs import RunDir
 
@@ -226,15 +226,11 @@ def _ray(
             ray.shutdown()
 
 
-EXECUTORS = ("local", "ray")
-
 
 def execute_grid(
     specs: Iterable[RunSpec],
     root: Path,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
     on_done: Callable[[RunOutcome], None] = lambda outcome: None,
 ) -> list[RunOutcome]:
     """Run (or resume) every spec; returns one outcome per spec, in completion order.
@@ -242,14 +238,14 @@ def execute_grid(
     Args:
         specs: the runs still to do.
         root: the leaderboard's output directory (runs go to ``root/runs/...``).
-        executor: ``"local"`` (processes on this machine) or ``"ray"``.
-        workers: parallel processes for the local executor.
-        address: Ray cluster address (None: start a local Ray instance).
+        options: where they run: ``executor`` (``"local"``: processes on this machine, or
+            ``"ray"``), ``workers`` (parallel processes of the local executor), ``address``
+            (the Ray cluster's; None: start a local Ray instance).
         on_done: called with each outcome as it arrives (progress bars).
     """
     specs = list(specs)
-    if executor == "local":
-        return _local(specs, Path(root), workers, on_done)
-    if executor == "ray":
-        return _ray(specs, Path(root), address, on_done)
-    raise ValueError(f"unknown executor {executor!r}; valid: {', '.join(EXECUTORS)}")
+    if options.executor == "local":
+        return _local(specs, Path(root), options.workers, on_done)
+    if options.executor == "ray":
+        return _ray(specs, Path(root), options.address, on_done)
+    raise ValueError(f"unknown executor {options.executor!r}; valid: {', '.join(EXECUTORS)}")

@@ -20,9 +20,60 @@ from clfd_bench.harness.run import TrainSpec
 from clfd_bench.harness.worker import Job
 from clfd_bench.runs import RunDir, RunStatus
 
-__all__ = ["RunSpec", "make_grid", "reread_simulator", "run_state", "run_status"]
+__all__ = ["DEFAULT_OPTIONS", "EXECUTORS", "GridOptions", "RunSpec", "make_grid",
+           "reread_simulator", "run_state", "run_status"]
 
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
+
+EXECUTORS = ("local", "ray")
+"""Where a grid's runs can run (:mod:`clfd_bench.leaderboard.executors`)."""
+
+
+@dataclass(frozen=True)
+class GridOptions:
+    """The options every grid shares (``clfd-bench leaderboard``, ``paper run``, the
+    studies), one value from the command line to the executors: what each run does beyond its
+    method, seed and order, and where the runs run.
+
+    Attributes:
+        node: the runs' NODE variant (a named entry's own node wins; grids with NODE variants
+            of their own, the paper's and the loop study's, do not use it).
+        tasks: stop each run after this many tasks (None: all of the dataset's).
+        sim: execute each run's predictions in simulation.
+        executor: ``"local"`` (processes on this machine) or ``"ray"`` (:data:`EXECUTORS`).
+        workers: parallel local worker processes.
+        address: Ray cluster address (None: start a local Ray instance).
+
+    Raises:
+        InputError: ``workers`` below 1 or an unknown ``executor`` (one line naming the
+            option), when the value is made: before any run is planned.
+    """
+
+    node: str = "t"
+    tasks: int | None = None
+    sim: bool = True
+    executor: str = "local"
+    workers: int = 1
+    address: str | None = None
+
+    def __post_init__(self) -> None:
+        from clfd_bench.harness.validate import InputError, check_count
+
+        check_count("--workers", self.workers)
+        if self.executor not in EXECUTORS:
+            raise InputError(f"--executor {self.executor}: unknown executor; valid: "
+                             f"{', '.join(EXECUTORS)}")
+
+    @classmethod
+    def from_meta(cls, meta: dict[str, Any], **where: Any) -> GridOptions:
+        """The node, tasks and simulation a leaderboard's runs had (its ``leaderboard.json``
+        ``meta``), with ``where`` they run now (``executor``, ``workers``, ``address``)."""
+        return cls(node=meta.get("node", "t"), tasks=meta.get("tasks"),
+                   sim=bool(meta.get("sim", True)), **where)
+
+
+DEFAULT_OPTIONS = GridOptions()
+"""Every grid option at its default: NODE^T, every task, with simulation, one local worker."""
 
 
 @dataclass(frozen=True, order=True)
@@ -145,12 +196,11 @@ def make_grid(
     profile: str,
     seeds: list[int],
     orders: list[int],
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = GridOptions(),
     configs: dict[str, str] | None = None,
 ) -> list[RunSpec]:
-    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order.
+    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order, with
+    the node, tasks and simulation of ``options``.
 
     ``methods`` may name entries (:data:`~clfd_bench.leaderboard.entries.ENTRIES`): their
     runs train the entry's method with the entry's node and settings. ``configs``: method or
@@ -164,11 +214,12 @@ def make_grid(
     if not methods or not seeds or not orders:
         raise ValueError("a grid needs at least one method, one seed and one order")
     specs = []
+    tasks, sim = options.tasks, options.sim
     for m, o, s in product(methods, orders, seeds):
         config_file = (configs or {}).get(m)
         entry = ENTRIES.get(m)
         if entry is None:
-            specs.append(RunSpec(dataset, m, profile, s, o, node, tasks, sim,
+            specs.append(RunSpec(dataset, m, profile, s, o, options.node, tasks, sim,
                                  config_file=config_file))
         else:
             specs.append(RunSpec(dataset, entry.method, profile, s, o, entry.node, tasks, sim,

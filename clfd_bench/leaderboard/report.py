@@ -522,14 +522,13 @@ def leaderboard_runs(out: str | Path, doc: dict[str, Any]) -> list[LeaderboardRu
     """The runs of a leaderboard read with :func:`read_leaderboard`, in its grid's order
     (method, order, seed), then the included ones. Run directories are found from the grid
     (:func:`clfd_bench.leaderboard.grid.make_grid`), as the leaderboard placed them."""
-    from clfd_bench.leaderboard.grid import make_grid
+    from clfd_bench.leaderboard.grid import GridOptions, make_grid
 
     out = Path(out)
     meta = doc["meta"]
     statuses = meta.get("runs") or {}
     specs = make_grid(meta["dataset"], list(meta["methods"]), meta["profile"],
-                      list(meta["seeds"]), list(meta["orders"]), meta.get("node", "t"),
-                      meta.get("tasks"), bool(meta.get("sim", True)))
+                      list(meta["seeds"]), list(meta["orders"]), GridOptions.from_meta(meta))
     runs = [LeaderboardRun(s.label, s.name, s.run_dir(out), str(statuses.get(s.name, "missing")),
                            s.seed, s.order) for s in specs]
     for inc in meta.get("included") or []:
