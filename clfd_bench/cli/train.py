@@ -73,19 +73,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.config import ConfigError
-    from clfd_bench.harness.run import Training, TrainSpec, failure, run, summary_lines
-    from clfd_bench.harness.validate import (
-        check_count,
-        check_dataset,
-        check_env_count,
-        check_robot_model,
-        check_run_out_dir,
-    )
+    from clfd_bench.harness.run import Training, TrainSpec, checked_run
+    from clfd_bench.harness.validate import check_count, check_env_count
     from clfd_bench.methods import MethodClassError, UnknownMethodError
-    from clfd_bench.runs import RunDir
 
-    # Validation at the edge: the checks up to check_dataset run before any folder is created
-    # or any training starts; a failure is one line on stderr and exit 2 (cli/main.py).
+    # Validation at the edge: every check runs before any folder is created or any training
+    # starts; a failure is one line on stderr and exit 2.
     check_count("--threads", args.threads)
     check_count("--sim-workers", args.sim_workers)
     if args.threads is None:
@@ -104,22 +97,6 @@ def _run(args: argparse.Namespace) -> int:
     if not args.out:
         print("clfd-bench train: error: --out DIR is required", file=sys.stderr)
         return 2
-    check_run_out_dir(args.out)
-    check_dataset(config.dataset, config.order)
-    if not args.no_sim:
-        check_robot_model()
-    log = None if args.quiet else print
-    try:
-        results = run(Training(config, args.threads, args.keep_checkpoints), args.out,
-                      sim=not args.no_sim, sim_workers=args.sim_workers, log=log)
-    except Exception as exc:
-        ended = failure(exc, args.out)
-        if ended is None:
-            raise
-        code, message = ended
-        print(f"clfd-bench train: error: {message}", file=sys.stderr)
-        return code
-    if log is not None:
-        for line in summary_lines(results, RunDir(args.out).results_path):
-            log(line)
-    return 0
+    return checked_run(Training(config, args.threads, args.keep_checkpoints), args.out,
+                       sim=not args.no_sim, sim_workers=args.sim_workers,
+                       log=None if args.quiet else print, prog="clfd-bench train")

@@ -12,14 +12,16 @@ trains nothing -- and, with simulation, executes every saved prediction not exec
 killed run resumes with the executions of its finished tasks cached, and once at the end for
 what is left (a run killed while executing, one trained before without simulation).
 
-The exit codes and one-line messages a run ends with (:func:`failure`) are shared by the
-command line and the grid's workers: 0 done; 2 a bad input or a run directory that is not
+The command line and the grid's workers run a training run the same way
+(:func:`checked_run`): its inputs checked first, and the same exit codes and one-line
+messages at the end (:func:`failure`): 0 done; 2 a bad input or a run directory that is not
 this run's or is held by another process; 1 training diverged.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -34,6 +36,7 @@ __all__ = [
     "Source",
     "TrainSpec",
     "Training",
+    "checked_run",
     "execute_after_task",
     "failure",
     "finish_execution",
@@ -217,11 +220,12 @@ def summary_lines(results: dict[str, Any], results_path: Path) -> list[str]:
     return lines
 
 
-def failure(exc: BaseException, out: str | os.PathLike[str]) -> tuple[int, str] | None:
-    """The exit code and one-line message of a run that ended with ``exc`` for a reason of
-    the user's or of the run's: 2 for a bad input (:data:`~clfd_bench.harness.validate.
-    USER_ERRORS`), a run directory holding another run or held by another process; 1 for
-    diverged training. None: ``exc`` is a bug (its traceback is the report)."""
+def failure(exc: BaseException, out: str | os.PathLike[str], prog: str) -> int:
+    """How a command ends a run that raised ``exc``: for a reason of the user's or of the
+    run's, one line on stderr (``<prog>: error: ...``) and the exit code -- 2 for a bad input
+    (:data:`~clfd_bench.harness.validate.USER_ERRORS`), a run directory holding another run
+    or held by another process; 1 for diverged training. Any other ``exc`` is a bug: raised
+    again (its traceback is the report)."""
     from clfd_bench.harness.loop import TrainingDivergedError
     from clfd_bench.harness.protocol import RunMismatchError
     from clfd_bench.harness.validate import USER_ERRORS
@@ -230,7 +234,34 @@ def failure(exc: BaseException, out: str | os.PathLike[str]) -> tuple[int, str] 
     if isinstance(exc, TrainingDivergedError):  # the run failed; its finished tasks stay
         kept = (f"tasks 0..{exc.task - 1} stay in {out}" if exc.task > 0
                 else "no task was finished")
-        return 1, f"{exc}; {kept} (another lr needs another --out)"
-    if isinstance(exc, (RunMismatchError, RunLockedError, *USER_ERRORS)):
-        return 2, "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-    return None
+        code, message = 1, f"{exc}; {kept} (another lr needs another --out)"
+    elif isinstance(exc, (RunMismatchError, RunLockedError, *USER_ERRORS)):
+        code = 2
+        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+    else:
+        raise exc
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return code
+
+
+def checked_run(training: Training, out: str | os.PathLike[str], *, sim: bool,
+                sim_workers: int, log: Log | None, prog: str) -> int:
+    """A training run as a command runs it (``clfd-bench train``, a grid's worker): what it
+    needs checked before anything is written (``out`` new, empty or this run's; the dataset's
+    files; with ``sim``, the robot model), then :func:`run`, then its summary to ``log``.
+    Returns the exit code: 0 done, else :func:`failure`'s."""
+    from clfd_bench.harness.validate import check_dataset, check_robot_model, check_run_out_dir
+
+    config = training.config
+    try:
+        check_run_out_dir(out)
+        check_dataset(config.dataset, config.order)
+        if sim:
+            check_robot_model()
+        results = run(training, out, sim=sim, sim_workers=sim_workers, log=log)
+    except Exception as exc:
+        return failure(exc, out, prog)
+    if log is not None:
+        for line in summary_lines(results, RunDir(out).results_path):
+            log(line)
+    return 0

@@ -9,7 +9,7 @@ does, and resumes a half-finished run after its last finished task. First thing,
 be killed when the grid that started it dies (:func:`clfd_bench.procs.die_with_parent_from_env`),
 so even a SIGKILLed grid leaves no worker training behind.
 
-Exit codes (:func:`clfd_bench.harness.run.failure`): 0 done; 2 a bad job, input or run
+Exit codes (:func:`clfd_bench.harness.run.checked_run`): 0 done; 2 a bad job, input or run
 directory (one line, ``clfd-bench worker: error: ...``); 1 training diverged, or a crash (its
 traceback).
 """
@@ -65,32 +65,10 @@ class Job:
         return [sys.executable, "-m", ENTRY_POINT, self.to_json()]
 
 
-def _work(job: Job) -> int:
-    from clfd_bench.harness.run import Training, run, summary_lines
-    from clfd_bench.harness.validate import (
-        check_dataset,
-        check_env_count,
-        check_robot_model,
-        check_run_out_dir,
-    )
-    from clfd_bench.runs import RunDir
-
-    check_env_count("CLFD_THREADS")
-    config = job.train.config()
-    check_run_out_dir(job.out)
-    check_dataset(config.dataset, config.order)
-    if job.sim:
-        check_robot_model()
-    results = run(Training(config), job.out, sim=job.sim, sim_workers=job.sim_workers,
-                  log=print)
-    for line in summary_lines(results, RunDir(job.out).results_path):
-        print(line)
-    return 0
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the job given as the one argument; return the exit code (module docstring)."""
-    from clfd_bench.harness.run import failure
+    from clfd_bench.harness.run import Training, checked_run, failure
+    from clfd_bench.harness.validate import check_env_count
     from clfd_bench.procs import die_with_parent_from_env
 
     die_with_parent_from_env()  # started by a grid: end with it, even if it is SIGKILLed
@@ -106,14 +84,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{_PROG}: error: {exc}", file=sys.stderr)
         return 2
     try:
-        return _work(job)
+        check_env_count("CLFD_THREADS")
+        training = Training(job.train.config())
     except Exception as exc:
-        ended = failure(exc, job.out)
-        if ended is None:
-            raise
-        code, message = ended
-        print(f"{_PROG}: error: {message}", file=sys.stderr)
-        return code
+        return failure(exc, job.out, _PROG)
+    return checked_run(training, job.out, sim=job.sim, sim_workers=job.sim_workers, log=print,
+                       prog=_PROG)
 
 
 if __name__ == "__main__":
