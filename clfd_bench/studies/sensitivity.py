@@ -33,11 +33,11 @@ from typing import Any
 import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text, json_safe
-from clfd_bench.leaderboard.aggregate import CRITERIA, RunRecord, quartiles
+from clfd_bench.leaderboard.aggregate import RunRecord, quartiles
 from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, GridOptions, RunSpec
 from clfd_bench.leaderboard.plots import _plt, _save
 from clfd_bench.leaderboard.runner import run_specs
-from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
+from clfd_bench.metrics.cl import CRITERIA, cl_score, cl_stability, final_model_size
 from clfd_bench.node_variants import node_label
 
 __all__ = [
