@@ -407,6 +407,7 @@ def build_bundle(results_dir: str | os.PathLike[str], archive: str | os.PathLike
         PretrainedError: ``results_dir`` holds no leaderboard, includes runs from elsewhere,
             or a run is not done under the installed simulator (finish it first).
     """
+    from clfd_bench.leaderboard.grid import GridOptions
     from clfd_bench.leaderboard.report import read_leaderboard
     from clfd_bench.leaderboard.runner import run_leaderboard
 
@@ -434,8 +435,7 @@ def build_bundle(results_dir: str | os.PathLike[str], archive: str | os.PathLike
         result = run_leaderboard(
             dataset=meta["dataset"], methods=list(meta["methods"]), profile=meta["profile"],
             seeds=list(meta["seeds"]), orders=list(meta["orders"]), out=stage,
-            node=meta.get("node", "t"), tasks=meta.get("tasks"), sim=bool(meta.get("sim")),
-            workers=workers)
+            options=GridOptions.from_meta(meta, workers=workers))
         if result.trained or result.failed:
             raise PretrainedError(f"re-tabulating {src} ran or failed runs "
                                   f"({[s.name for s in result.trained]}, "

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.leaderboard.runner import run_leaderboard
 from clfd_bench.runs import RunDir
 
@@ -35,7 +35,7 @@ def main() -> int:
           f"with simulation -> {out}/", flush=True)
     result = run_leaderboard(
         dataset="helloworld", methods=METHODS, profile="fast", seeds=[0], orders=[0],
-        out=out, workers=args.workers,
+        out=out, options=GridOptions(workers=args.workers),
     )
     print((out / "leaderboard.md").read_text())
     hn = RunSpec("helloworld", "hn", "fast", 0, 0, "t", None, True)

@@ -57,12 +57,12 @@ def test_script_without_markers_says_what_to_add(tmp_path):
 
 def test_every_table_column_has_an_entry():
     # leaderboard.md / .csv / .json: the key and the header the Markdown table prints
-    for key, head in report.COLUMNS:
+    # and the site's table, which is written from the same list
+    for key, head, group in report.COLUMNS:
         assert key in glossary.GLOSSARY, f"leaderboard column {key!r} has no glossary entry"
         assert glossary.GLOSSARY[key].name == head, key
-    # the site's table, the run page's CL metrics and the failure kinds
-    for key, *_ in build._COLUMNS:
-        assert key in glossary.GLOSSARY, f"site column {key!r} has no glossary entry"
+        assert group in build._GROUPS, key
+    # the run page's CL metrics and the failure kinds
     for key in (*build._HEADER_KEYS, *build._RUN_METRICS, *FAILURE_KINDS, "paper_cl_score"):
         assert key in glossary.GLOSSARY, key
     with pytest.raises(KeyError, match="glossary.py"):
@@ -104,7 +104,7 @@ class _Headers(HTMLParser):
 def _index_html() -> str:
     """The site's index page for a one-row leaderboard that matches a paper table."""
     metrics = {key: {"median": 0.5, "q1": 0.4, "q3": 0.6, "values": [0.4, 0.5, 0.6]}
-               for key, *_ in build._COLUMNS}
+               for key, *_ in report.COLUMNS}
     doc = {"meta": {"dataset": "helloworld", "profile": "fast"},
            "rows": [{"rank": 1, "method": "hn", "runs_ok": 3, "runs_failed": 0,
                      "paper_rank": 2, "metrics": metrics, "exec_failures": {"task": 2},
@@ -123,7 +123,7 @@ def test_every_site_column_header_shows_its_definition():
     parser = _Headers()
     parser.feed(_index_html())
     heads = parser.rows[-1]
-    keys = ["rank", "method", "paper_rank", "runs", *(k for k, *_ in build._COLUMNS),
+    keys = ["rank", "method", "paper_rank", "runs", *(k for k, *_ in report.COLUMNS),
             "exec_failures"]
     assert [h["text"] for h in heads][:4] == ["#", "method", "paper #", "runs"]
     assert len(heads) == len(keys)

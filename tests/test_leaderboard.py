@@ -8,11 +8,14 @@ import sys
 
 import pytest
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.leaderboard.runner import run_leaderboard
 
-GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[0], orders=[0],
-            tasks=2, sim=True)
+GRID = dict(dataset="helloworld", methods=["sg", "hn"], profile="smoke", seeds=[0], orders=[0])
+
+
+def _options(**where) -> GridOptions:
+    return GridOptions(tasks=2, sim=True, **where)
 
 # Wall-clock columns differ between any two runs; everything else must be identical.
 CLOCK_KEYS = {"TE", "CL_score", "CL_stability", "exec_CL_score", "train_time_s", "train_cpu_s"}
@@ -34,7 +37,7 @@ def _run_errors(out, spec: RunSpec):
 @pytest.fixture(scope="module")
 def local_grid(tmp_path_factory):
     out = tmp_path_factory.mktemp("local")
-    result = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    result = run_leaderboard(**GRID, out=out, options=_options(executor="local", workers=2))
     return out, result
 
 
@@ -48,6 +51,10 @@ def test_local_grid_writes_tables_and_figures(local_grid):
     main_table = md.split("## Executions that failed")[0]
     assert main_table.count("| SG |") == 1 and main_table.count("| HN |") == 1
     assert "## Executions that failed, by kind" in md  # the grid ran with simulation
+    for spec in result.specs:  # each run's worker: the library's entry point, output logged
+        log = (spec.run_dir(out) / "train.log").read_text()
+        assert "-m clfd_bench.harness.worker {" in log and "clfd_bench.cli" not in log
+        assert "executed in simulation after task 1" in log and "done: " in log
     table = _table(out)
     assert set(table) == {"sg", "hn"}
     assert table["sg"]["ACC"] and table["hn"]["exec_ACC"]
@@ -57,7 +64,7 @@ def test_rerun_trains_nothing_twice(local_grid):
     out, _ = local_grid
     spec = RunSpec("helloworld", "sg", "smoke", 0, 0, "t", 2, True)
     before = spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns
-    again = run_leaderboard(**GRID, out=out, executor="local", workers=2)
+    again = run_leaderboard(**GRID, out=out, options=_options(executor="local", workers=2))
     assert again.trained == [] and len(again.skipped) == 2
     assert spec.run_dir(out).joinpath("results.json").stat().st_mtime_ns == before
 
@@ -72,7 +79,7 @@ def test_half_finished_grid_resumes_without_retraining(tmp_path):
                  "--tasks", "1", "--quiet", "--out", str(hn.run_dir(tmp_path))]) == 0
     first = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
     assert len(first["train_time_s"]) == 1
-    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="local", workers=1))
     assert sorted(s.method for s in result.trained) == ["hn", "sg"] and not result.failed
     final = json.loads((hn.run_dir(tmp_path) / "results.json").read_text())
     assert final["complete"] and len(final["train_time_s"]) == 2
@@ -83,15 +90,15 @@ def test_half_finished_grid_resumes_without_retraining(tmp_path):
 
 
 def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
-    original = RunSpec.train_argv
+    original = RunSpec.worker_argv
 
     def argv(self, root):
         if self.method == "hn":
             return [sys.executable, "-c", "raise SystemExit('boom: injected failure')"]
         return original(self, root)
 
-    monkeypatch.setattr(RunSpec, "train_argv", argv)
-    result = run_leaderboard(**GRID, out=tmp_path, executor="local", workers=1)
+    monkeypatch.setattr(RunSpec, "worker_argv", argv)
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="local", workers=1))
     assert [o.spec.method for o in result.failed] == ["hn"]
     assert "boom: injected failure" in result.failed[0].error
     md = (tmp_path / "leaderboard.md").read_text()
@@ -103,7 +110,7 @@ def test_crashing_run_is_reported_and_grid_goes_on(tmp_path, monkeypatch):
 def test_ray_executor_gives_identical_tables(local_grid, tmp_path):
     pytest.importorskip("ray", reason="Ray is the optional extra clfd-bench[dist]")
     out, _ = local_grid
-    result = run_leaderboard(**GRID, out=tmp_path, executor="ray")
+    result = run_leaderboard(**GRID, out=tmp_path, options=_options(executor="ray"))
     assert len(result.trained) == 2 and not result.failed
     assert _table(tmp_path) == _table(out)
     for spec in result.specs:
@@ -119,8 +126,7 @@ def test_overrides_name_the_run_and_reach_training(tmp_path):
     assert variant.run_dir(tmp_path) != plain.run_dir(tmp_path)
     assert variant.name.endswith("_beta=0.0042")
     assert RunSpec(**json.loads(json.dumps(variant.to_dict()))) == variant  # Ray/failed.json
-    argv = variant.train_argv(tmp_path)
-    sets = [argv[i + 1] for i, a in enumerate(argv) if a == "--set"]
+    sets = list(variant.job(tmp_path).train.overrides)
     assert sets == ["beta=0.0042"]
     config = resolve_config("hn", "helloworld", "smoke", overrides=sets)
     assert config.to_dict()["parts"]["position"]["beta"] == pytest.approx(0.0042)

@@ -9,14 +9,15 @@ import pytest
 from clfd_bench.leaderboard import entries
 from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
 from clfd_bench.leaderboard.entries import ENTRIES, Entry
-from clfd_bench.leaderboard.grid import RunSpec, make_grid
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec, make_grid
 from clfd_bench.leaderboard.report import paper_ranking, write_tables
 from clfd_bench.leaderboard.runner import check_methods
 from clfd_bench.methods import UnknownMethodError
 
 
 def test_entry_runs_carry_their_node_and_settings(tmp_path):
-    specs = make_grid("lasa", ["hn", "hn-snode", "chn-snode"], "fast", [0], [0], node="t")
+    specs = make_grid("lasa", ["hn", "hn-snode", "chn-snode"], "fast", [0], [0],
+                      GridOptions(node="t"))
     hn, hn_s, chn_s = specs
     assert (hn.node, hn.overrides, hn.label) == ("t", (), "hn")
     assert (hn_s.method, hn_s.node, hn_s.label) == ("hn", "s", "hn-snode")
@@ -25,14 +26,12 @@ def test_entry_runs_carry_their_node_and_settings(tmp_path):
     # Same method folder, different runs.
     assert hn.name == "lasa/hn/fast_nodet_o0_s0"
     assert hn_s.name == "lasa/hn/fast_nodes_o0_s0_hnet_reg=sampled"
-    argv = hn_s.train_argv(tmp_path)
-    assert argv[argv.index("--node") + 1] == "s"
-    assert argv[argv.index("--set") + 1] == "hnet_reg=sampled"
-    assert argv[argv.index("--method") + 1] == "hn"
+    train = hn_s.job(tmp_path).train
+    assert (train.node, train.overrides, train.method) == ("s", ("hnet_reg=sampled",), "hn")
     # Executors ship specs as plain data: the entry survives the round trip.
     assert RunSpec(**hn_s.to_dict()) == hn_s
     # The entry's node wins over the grid's.
-    assert make_grid("lasa", ["hn-snode"], "fast", [0], [0], node="i")[0].node == "s"
+    assert make_grid("lasa", ["hn-snode"], "fast", [0], [0], GridOptions(node="i"))[0].node == "s"
     # Its configuration resolves (the sNODE keys and the regulariser are accepted).
     cfg = hn_s.config()
     assert cfg.node == "s"

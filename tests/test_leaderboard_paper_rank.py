@@ -10,6 +10,7 @@ import json
 import pytest
 
 from clfd_bench.leaderboard.aggregate import MethodRow
+from clfd_bench.leaderboard.grid import GridOptions
 from clfd_bench.leaderboard.report import paper_ranking, write_tables
 
 HW_METHODS = ["sg", "ft", "rep", "si", "mas", "hn", "chn"]
@@ -148,7 +149,7 @@ def test_exec_cl_score_replaces_acc_and_rem_and_is_ranked_against_the_paper(tmp_
 
     paper_i = {"sg": 0.67, "ft": 0.70, "rep": 0.82, "si": 0.60, "mas": 0.66, "hn": 0.86,
                "chn": 0.88}  # tab:hw_cl_no_time
-    specs = make_grid("helloworld", HW_METHODS, "fast", [0], [0], node="i")
+    specs = make_grid("helloworld", HW_METHODS, "fast", [0], [0], GridOptions(node="i"))
     traj = {"sg": (1.00, 1.00), "ft": (0.25, 0.00)}
     executed = {"sg": (0.64, 1.00), "ft": (0.16, 0.29)}
     records = []

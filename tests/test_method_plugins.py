@@ -213,6 +213,7 @@ def test_leaderboard_config_names_a_methods_own_file(plugin_dir, tmp_path, monke
     """``--config METHOD=PATH`` reaches the grid's training runs (their saved config) and a
     file for a method not in the grid is refused before any work."""
     from clfd_bench.harness.validate import InputError
+    from clfd_bench.leaderboard.grid import GridOptions
     from clfd_bench.leaderboard.runner import run_leaderboard
 
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(plugin_dir),
@@ -222,7 +223,7 @@ def test_leaderboard_config_names_a_methods_own_file(plugin_dir, tmp_path, monke
         "[smoke.defaults]\nl2_lambda = 1.0", "[smoke.defaults]\nl2_lambda = 7.5"))
     method = "clfd_l2:L2Anchor"
     kwargs = dict(dataset="helloworld", methods=[method], profile="smoke", seeds=[0],
-                  orders=[0], tasks=1, sim=False, workers=1)
+                  orders=[0], options=GridOptions(tasks=1, sim=False, workers=1))
     with pytest.raises(InputError, match="--config ft=...: 'ft' is not in --methods"):
         run_leaderboard(out=tmp_path / "bad", configs={"ft": str(own)}, **kwargs)
     assert not (tmp_path / "bad").exists()

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.metrics.cl import cl_score, cl_stability
 from clfd_bench.metrics.paper_numbers import cl_table
 from clfd_bench.studies.paper_grid import FULL_GRID_RUNS, GridError, grid_cost, paper_grid
@@ -33,7 +33,7 @@ def test_full_grid_counts_follow_the_paper():
 
 def test_narrowing_flags():
     specs = paper_grid(datasets=["lasa", "robotasks"], methods=["si", "hn"], seeds=[0, 3],
-                       orders=[0], profile="fast", tasks=2, sim=False)
+                       orders=[0], profile="fast", options=GridOptions(tasks=2, sim=False))
     # SI only where the paper ran it (LASA); HN on both; LASA has two NODE variants
     assert len(specs) == (2 * 2 + 1) * 2
     assert {(s.dataset, s.method) for s in specs} == {("lasa", "si"), ("lasa", "hn"),
@@ -121,7 +121,8 @@ def test_cl_table_medians_and_differences(tmp_path):
                        {"position": [size, size]}, {"position": [1.0 + seed, 2.0]},
                        sim={"ACC": acc / 2, "REM": 1.0, "BWT": 0.0})
     specs = paper_grid(datasets=["helloworld"], methods=["sg", "hn"], nodes=["t"],
-                       seeds=[0, 1, 2], orders=[0], profile="smoke", tasks=2)
+                       seeds=[0, 1, 2], orders=[0], profile="smoke",
+                       options=GridOptions(tasks=2))
     tables, times, _ = build_tables(specs, tmp_path)
     (table,) = tables
     rows = {r.method: r for r in table.rows}
@@ -150,7 +151,8 @@ def test_missing_runs_show_as_missing_not_zero(tmp_path):
     _write_run(tmp_path, _spec("sg", 0), {"dtw": _cl(1.0, 1.0)}, {"position": [10, 20]},
                {"position": [1.0, 1.0]}, sim={"ACC": 1.0, "REM": 1.0, "BWT": 0.0})
     specs = paper_grid(datasets=["helloworld"], methods=["sg", "chn"], nodes=["t"],
-                       seeds=[0, 1], orders=[0], profile="smoke", tasks=2)
+                       seeds=[0, 1], orders=[0], profile="smoke",
+                       options=GridOptions(tasks=2))
     tables, _, records = build_tables(specs, tmp_path)
     rows = {r.method: r for r in tables[0].rows}
     assert (rows["sg"].runs_done, rows["sg"].runs_expected) == (1, 2)
@@ -180,7 +182,7 @@ def test_robotasks_position_and_orientation_tables(tmp_path):
                    {"position": [1.0, 1.0], "orientation": [1.0, 1.0]})
     # the grid asks for runs with simulation: the finished no-sim runs are used instead
     specs = paper_grid(datasets=["robotasks"], methods=["sg", "hn"], seeds=[0], orders=[0],
-                       profile="smoke", tasks=2)
+                       profile="smoke", options=GridOptions(tasks=2))
     tables, times, _ = build_tables(specs, tmp_path)
     pos, ori = tables
     assert (pos.spec.variant, ori.spec.variant) == ("position", "orientation")

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from clfd_bench.execution.saved_run import load_run
+from clfd_bench.leaderboard.grid import GridOptions
 from clfd_bench.leaderboard.report import leaderboard_runs, paper_values, read_leaderboard
 from clfd_bench.leaderboard.runner import run_leaderboard
 from clfd_bench.site import build_site
@@ -37,7 +38,8 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-
 def results(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
     result = run_leaderboard(dataset="helloworld", methods=METHODS, profile="smoke", seeds=[0],
-                             orders=[0], tasks=TASKS, sim=True, out=out, workers=2)
+                             orders=[0], out=out,
+                             options=GridOptions(tasks=TASKS, sim=True, workers=2))
     assert not result.failed
     return out
 

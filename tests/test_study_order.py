@@ -10,7 +10,7 @@ import math
 import pytest
 
 from clfd_bench.cli.main import main
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.leaderboard.runner import collect
 from clfd_bench.metrics.cl import cl_score, cl_stability
 from clfd_bench.studies.task_order import (
@@ -22,7 +22,7 @@ from clfd_bench.studies.task_order import (
 )
 
 STUDY = dict(datasets=["helloworld"], methods=["sg"], orders=[0, 1], seeds=[0], profile="smoke",
-             tasks=2, sim=False)  # fmt: skip
+             options=GridOptions(tasks=2, sim=False))  # fmt: skip
 
 
 @pytest.fixture(scope="module")

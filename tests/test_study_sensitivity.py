@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from clfd_bench.leaderboard.aggregate import RunRecord
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 from clfd_bench.studies.sensitivity import (
     apply_ranges,
     config_scores,
@@ -60,14 +60,13 @@ def test_draw_is_seeded_and_stable():
 
 def test_draw_is_recorded_in_the_run_names(tmp_path):
     draws = draw_configs(["si", "hn"], 3, seed=7, ranges=RANGES)
-    specs = sensitivity_specs(draws, "lasa", "fast", seed=7, tasks=5, sim=False)
+    specs = sensitivity_specs(draws, "lasa", "fast", 7, GridOptions(tasks=5, sim=False))
     names = [s.name for s in specs]
     assert len(set(names)) == 6
     for draw, spec in zip(draws, specs, strict=True):
         for key, text in draw.values:
             assert f"_{key}={text}" in spec.name
-            argv = spec.train_argv(tmp_path)
-            assert argv[argv.index(f"{key}={text}") - 1] == "--set"
+            assert f"{key}={text}" in spec.job(tmp_path).train.overrides
             assert float(text) == draw.value(key)
         assert spec.name.startswith(f"lasa/{draw.method}/fast_nodet_o0_s7_k5_nosim_")
 

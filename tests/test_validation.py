@@ -286,10 +286,11 @@ def test_grid_out_is_a_file(capsys, tmp_path):
 
 
 def test_valid_plan_passes_and_creates_nothing(tmp_path):
-    from clfd_bench.leaderboard.grid import make_grid
+    from clfd_bench.leaderboard.grid import GridOptions, make_grid
     from clfd_bench.leaderboard.runner import validate_plan
 
-    specs = make_grid("helloworld", list_methods(), "smoke", [0, 1], [0, 1, 2], tasks=7)
+    specs = make_grid("helloworld", list_methods(), "smoke", [0, 1], [0, 1, 2],
+                      GridOptions(tasks=7))
     validate_plan(specs, tmp_path / "grid")
     assert not (tmp_path / "grid").exists()
 

@@ -1,5 +1,6 @@
 """What the grid commands (``leaderboard``, ``paper``, ``study ...``) share: list-valued
-options, the executor options, and the way a command ends (the table it wrote, the files,
+options, the grid options (one :class:`~clfd_bench.leaderboard.grid.GridOptions` from the
+command line), and the way a command ends (the table it wrote, the files,
 the runs that failed, the exit code)."""
 
 from __future__ import annotations
@@ -9,8 +10,8 @@ import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-__all__ = ["add_executor_arguments", "finish", "frame_size", "ints", "names", "run_grid",
-           "unknown_dataset"]
+__all__ = ["add_grid_arguments", "finish", "frame_size", "grid_options", "ints", "names",
+           "run_grid", "unknown_dataset"]
 
 
 def ints(text: str) -> list[int]:
@@ -55,20 +56,54 @@ def unknown_dataset(command: str, datasets: Iterable[str]) -> bool:
     return False
 
 
-def add_executor_arguments(
-    p: argparse.ArgumentParser, workers: int = 1, workers_help: str = "default 1"
+def add_grid_arguments(
+    p: argparse.ArgumentParser, workers: int = 1, workers_help: str = "default 1", *,
+    node: bool = True, sim: bool = True, executor: bool = True,
+    sim_help: str = "skip execution in simulation",
 ) -> None:
-    """``--executor``, ``--workers``, ``--address``: where a grid of training runs runs."""
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    p.add_argument("--workers", type=int, default=workers,
-                   help=f"parallel local training processes ({workers_help})")
-    p.add_argument("--address", default=None,
-                   help="Ray cluster address (default: start a local Ray instance)")
+    """The grid options (:class:`~clfd_bench.leaderboard.grid.GridOptions`, read back by
+    :func:`grid_options`): ``--node`` (unless ``node`` is False: a grid with NODE variants of
+    its own), ``--tasks``, ``--no-sim`` (unless ``sim`` is False: a grid that never executes)
+    and where the runs run, ``--executor``, ``--workers``, ``--address`` (unless ``executor``
+    is False: a command that only reads a grid)."""
+    from clfd_bench.leaderboard.grid import EXECUTORS
+    from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+
+    if node:
+        p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
+    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
+    if sim:
+        p.add_argument("--no-sim", action="store_true", help=sim_help)
+    if executor:
+        p.add_argument("--executor", choices=EXECUTORS, default="local",
+                       help="local processes (default) or a Ray cluster")
+        p.add_argument("--workers", type=int, default=workers,
+                       help=f"parallel local training processes ({workers_help})")
+        p.add_argument("--address", default=None,
+                       help="Ray cluster address (default: start a local Ray instance)")
 
 
-def run_grid(command: str, specs: Sequence, args: argparse.Namespace, desc: str):
-    """Train (or reuse) ``specs`` under ``args.out`` with the executor options of ``args``.
+def grid_options(args: argparse.Namespace, **fixed):
+    """The :class:`~clfd_bench.leaderboard.grid.GridOptions` of the options
+    :func:`add_grid_arguments` added to ``args``; an option the command does not have takes
+    its value from ``fixed`` (e.g. ``sim=False``) or the default.
+
+    Raises:
+        InputError: ``--workers`` below 1 (one line; ``clfd-bench`` exits with 2).
+    """
+    from clfd_bench.leaderboard.grid import GridOptions
+
+    given = {name: getattr(args, name) for name in
+             ("node", "tasks", "executor", "workers", "address") if hasattr(args, name)}
+    if hasattr(args, "no_sim"):
+        given["sim"] = not args.no_sim
+    return GridOptions(**{**given, **fixed})
+
+
+def run_grid(command: str, specs: Sequence, args: argparse.Namespace, desc: str,
+             options=None):
+    """Train (or reuse) ``specs`` under ``args.out`` where ``options`` say (default: the
+    grid options of ``args``, :func:`grid_options`).
 
     Returns the :class:`clfd_bench.leaderboard.runner.GridRun`, or ``None`` after printing
     ``clfd-bench <command>: error: ...`` when a spec is refused before anything is trained
@@ -77,8 +112,7 @@ def run_grid(command: str, specs: Sequence, args: argparse.Namespace, desc: str)
     from clfd_bench.leaderboard.runner import run_specs
 
     try:
-        return run_specs(specs, Path(args.out), args.executor, args.workers, args.address,
-                         desc=desc)
+        return run_specs(specs, Path(args.out), options or grid_options(args), desc=desc)
     except USER_ERRORS as exc:
         print(f"clfd-bench {command}: error: {exc}", file=sys.stderr)
         return None

@@ -6,9 +6,15 @@ import argparse
 import os
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
+from clfd_bench.cli.common import (
+    add_grid_arguments,
+    finish,
+    grid_options,
+    ints,
+    names,
+    unknown_dataset,
+)
 from clfd_bench.leaderboard.entries import entry_help
-from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -33,12 +39,13 @@ def _run(args: argparse.Namespace) -> int:
 
     if unknown_dataset("leaderboard", [args.dataset]):
         return 2
+    options = grid_options(args)
     try:
         check_methods(args.methods)
     except (KeyError, MethodClassError) as exc:
         print(f"clfd-bench leaderboard: error: {exc.args[0]}", file=sys.stderr)
         return 2
-    if not args.no_sim:
+    if options.sim:
         from clfd_bench.harness.validate import check_robot_model
 
         check_robot_model()  # before any training: one line naming MENAGERIE_ROOT
@@ -49,12 +56,7 @@ def _run(args: argparse.Namespace) -> int:
         seeds=args.seeds,
         orders=args.orders,
         out=Path(args.out),
-        node=args.node,
-        tasks=args.tasks,
-        sim=not args.no_sim,
-        executor=args.executor,
-        workers=args.workers,
-        address=args.address,
+        options=options,
         include=[Path(p) for p in args.include],
         configs=dict(args.configs),
     )
@@ -84,9 +86,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
     p.add_argument("--orders", type=ints, default=[0], help="task orders (default 0)")
-    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
-    p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", default="results", help="output directory (default results/)")
     p.add_argument("--config", dest="configs", type=_config, action="append", default=[],
                    metavar="METHOD=PATH",
@@ -96,5 +95,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="also put this finished run directory in the leaderboard, under its "
                         "method label (repeatable): predictions scored with `clfd-bench "
                         "score`, or a run trained elsewhere")
-    add_executor_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count")
+    add_grid_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count")
     p.set_defaults(func=_run)

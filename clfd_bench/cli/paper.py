@@ -22,7 +22,7 @@ import math
 import sys
 from pathlib import Path
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
+from clfd_bench.cli.common import add_grid_arguments, finish, grid_options, ints, names, run_grid
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -33,7 +33,7 @@ def _grid(args: argparse.Namespace):
 
     return paper_grid(
         datasets=args.datasets, methods=args.methods, nodes=args.nodes, seeds=args.seeds,
-        orders=args.orders, profile=args.profile, tasks=args.tasks, sim=not args.no_sim,
+        orders=args.orders, profile=args.profile, options=grid_options(args),
     )
 
 
@@ -223,7 +223,7 @@ def _safe(func):
     return wrapped
 
 
-def _add_grid_flags(p: argparse.ArgumentParser) -> None:
+def _add_grid_flags(p: argparse.ArgumentParser, executor: bool = False) -> None:
     p.add_argument("--datasets", type=names, default=None,
                    help="comma-separated: lasa,helloworld,robotasks (default all)")
     p.add_argument("--methods", type=names, default=None,
@@ -234,9 +234,8 @@ def _add_grid_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=ints, default=None, help="comma-separated (default 0-4)")
     p.add_argument("--orders", type=ints, default=None, help="task orders (default 0,1,2)")
     p.add_argument("--profile", default="paper", help=profile_help("paper"))
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
-    p.add_argument("--no-sim", action="store_true",
-                   help="train without executing predictions in simulation")
+    add_grid_arguments(p, node=False, executor=executor,
+                       sim_help="train without executing predictions in simulation")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -254,9 +253,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     help="`clfd-bench bench train --json` output(s) for a CPU time estimate")
     ls.set_defaults(func=_safe(_list))
     run = sub.add_parser("run", help="train the grid's unfinished runs, then write the tables")
-    _add_grid_flags(run)
+    _add_grid_flags(run, executor=True)
     run.add_argument("--out", required=True, help="results directory (runs go to OUT/runs)")
-    add_executor_arguments(run)
     run.set_defaults(func=_safe(_run))
     sz = sub.add_parser("sizes", help="final model sizes and the FS they give, vs the paper's")
     sz.add_argument("--datasets", type=names, default=None,

@@ -7,7 +7,7 @@ import argparse
 import os
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, run_grid
+from clfd_bench.cli.common import add_grid_arguments, finish, grid_options, ints, names, run_grid
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -29,14 +29,14 @@ def _run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     out = Path(args.out)
-    specs = study_specs(args.dataset, args.methods, args.profile, args.seeds,
-                        sim=not args.no_sim, tasks=args.tasks)
-    grid = run_grid("study loops", specs, args, desc="loop study")
+    options = grid_options(args)
+    specs = study_specs(args.dataset, args.methods, args.profile, args.seeds, options)
+    grid = run_grid("study loops", specs, args, desc="loop study", options=options)
     if grid is None:  # refused before anything was trained
         return 2
     study = summarize(grid.records, out, args.dataset, args.methods)
     meta = {"dataset": args.dataset, "profile": args.profile, "methods": args.methods,
-            "seeds": args.seeds, "sim": not args.no_sim, "tasks": args.tasks,
+            "seeds": args.seeds, "sim": options.sim, "tasks": options.tasks,
             "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)}}
     files = write_outputs(study, out, meta)
     return finish("study loops", out / "loops.md", files, grid.failed)
@@ -59,9 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="comma-separated CL methods (default all seven)")
     p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
-    p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", required=True,
                    help="output directory (runs under OUT/runs, tables, figure)")
-    add_executor_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count")
+    add_grid_arguments(p, max(1, os.cpu_count() or 1), "default: CPU count", node=False)
     p.set_defaults(func=_run)

@@ -5,8 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, ints, names, unknown_dataset
-from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.cli.common import (
+    add_grid_arguments,
+    finish,
+    grid_options,
+    ints,
+    names,
+    unknown_dataset,
+)
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -39,12 +45,7 @@ def _run(args: argparse.Namespace) -> int:
         seeds=args.seeds,
         profile=args.profile,
         out=Path(args.out),
-        node=args.node,
-        tasks=args.tasks,
-        sim=not args.no_sim,
-        executor=args.executor,
-        workers=args.workers,
-        address=args.address,
+        options=grid_options(args),
     )
     return finish("study order", Path(args.out) / "order_table.md", result.files,
                   result.failed, result.summary())
@@ -70,9 +71,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seeds", type=ints, default=[0, 1, 2],
                    help="comma-separated seeds (default 0,1,2)")
     p.add_argument("--profile", default="fast", help=profile_help("fast"))
-    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
-    p.add_argument("--no-sim", action="store_true", help="skip execution in simulation")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figures)")
-    add_executor_arguments(p)
+    add_grid_arguments(p)
     p.set_defaults(func=_run)

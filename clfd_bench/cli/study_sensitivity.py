@@ -5,8 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clfd_bench.cli.common import add_executor_arguments, finish, names, unknown_dataset
-from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
+from clfd_bench.cli.common import (
+    add_grid_arguments,
+    finish,
+    grid_options,
+    names,
+    unknown_dataset,
+)
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -35,10 +40,11 @@ def _run(args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(exc.args[0], file=sys.stderr)
         return 2
+    options = grid_options(args)
     try:
         ranges = apply_ranges(default_ranges(), args.methods, args.range)
         plan_sensitivity(args.dataset, args.methods, args.configs, args.seed, args.profile,
-                         ranges, node=args.node, tasks=args.tasks, sim=not args.no_sim)
+                         ranges, options)
     except (ValueError, ConfigError) as exc:
         print(f"study sensitivity: {exc}", file=sys.stderr)
         return 2
@@ -50,12 +56,7 @@ def _run(args: argparse.Namespace) -> int:
         profile=args.profile,
         out=Path(args.out),
         ranges=ranges,
-        node=args.node,
-        tasks=args.tasks,
-        sim=not args.no_sim,
-        executor=args.executor,
-        workers=args.workers,
-        address=args.address,
+        options=options,
     )
     return finish("study sensitivity", Path(args.out) / "sensitivity.md", result.files,
                   result.failed, result.text())
@@ -85,11 +86,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--range", action="append", default=[], metavar="[METHOD.]KEY=LOW,HIGH",
                    help="replace a sampling range, e.g. beta=1e-3,1e-2 (every method that "
                    "samples beta) or hn.beta=0.01,1 (one method; also adds a key); repeatable")
-    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
-    p.add_argument("--no-sim", action="store_true",
-                   help="skip execution in simulation (the study's scores are trajectory-based; "
-                   "execution adds exec ACC per configuration)")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figure)")
-    add_executor_arguments(p)
+    add_grid_arguments(p, sim_help="skip execution in simulation (the study's scores are "
+                       "trajectory-based; execution adds exec ACC per configuration)")
     p.set_defaults(func=_run)

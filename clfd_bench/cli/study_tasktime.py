@@ -6,14 +6,14 @@ import argparse
 import sys
 
 from clfd_bench.cli.common import (
-    add_executor_arguments,
+    add_grid_arguments,
     finish,
+    grid_options,
     ints,
     names,
     run_grid,
     unknown_dataset,
 )
-from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 from clfd_bench.profiles import profile_help
 
 __all__ = ["register"]
@@ -33,15 +33,16 @@ def _run(args: argparse.Namespace) -> int:
               "--methods and --seeds need at least one value", file=sys.stderr)
         return 2
     out = Path(args.out)
+    options = grid_options(args, sim=False)  # training times are measured without execution
     specs = study_specs(args.dataset, args.methods, args.regs, args.profile, args.seeds,
-                        args.node, args.tasks)
-    grid = run_grid("study tasktime", specs, args, desc="task-time study")
+                        options)
+    grid = run_grid("study tasktime", specs, args, desc="task-time study", options=options)
     if grid is None:  # refused before anything was trained
         return 2
     labels = list(dict.fromkeys(s.label for s in specs))
     rows = summarize(grid.records, labels)
     meta = {"dataset": args.dataset, "profile": args.profile, "methods": args.methods,
-            "regs": args.regs, "seeds": args.seeds, "node": args.node, "tasks": args.tasks,
+            "regs": args.regs, "seeds": args.seeds, "node": options.node, "tasks": options.tasks,
             "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)}}
     files = write_outputs(rows, out, meta)
     return finish("study tasktime", out / "task_time.md", files, grid.failed)
@@ -64,9 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="comma-separated hnet_reg modes (default all,batched,sampled)")
     p.add_argument("--profile", default="fast", help=profile_help("fast"))
     p.add_argument("--seeds", type=ints, default=[0], help="comma-separated seeds (default 0)")
-    p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t", help=NODE_HELP)
-    p.add_argument("--tasks", type=int, default=None, help="stop each run after K tasks")
     p.add_argument("--out", required=True, help="output directory (runs, tables, figure)")
-    add_executor_arguments(p, 1, "default 1: parallel runs would share the cores and "
-                                 "change each other's times")
+    add_grid_arguments(p, 1, "default 1: parallel runs would share the cores and change each "
+                             "other's times", sim=False)
     p.set_defaults(func=_run)

@@ -3,7 +3,11 @@
 * :mod:`~clfd_bench.harness.config` -- :class:`RunConfig` from ``baselines/<method>.toml``.
 * :mod:`~clfd_bench.harness.loop` -- :func:`train_task`, the only training loop.
 * :mod:`~clfd_bench.harness.learner` -- data <-> NODE space (normalisation, tangent map).
-* :mod:`~clfd_bench.harness.protocol` -- :func:`run_training` (``clfd-bench train``).
+* :mod:`~clfd_bench.harness.protocol` -- :func:`run_training`, the sequential protocol.
+* :mod:`~clfd_bench.harness.run` -- ``run``: one run from start to end (train or take
+  predictions made elsewhere, execute in simulation, score), what ``clfd-bench train``, the
+  grid's workers and ``clfd-bench score`` call.
+* :mod:`~clfd_bench.harness.worker` -- a grid's worker process (``python -m``).
 * :mod:`~clfd_bench.harness.predict` -- :func:`predict` from a run directory.
 * :mod:`~clfd_bench.harness.external` -- :func:`score_predictions` made elsewhere.
 

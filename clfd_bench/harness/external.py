@@ -3,8 +3,9 @@
 :func:`read_predictions` reads and checks them; :func:`score_predictions` turns them into a
 normal run directory (:class:`clfd_bench.runs.RunDir`) with the same code as a training run:
 errors from :func:`~clfd_bench.harness.evaluation.task_errors`, accuracy matrices and CL
-metrics from :func:`~clfd_bench.harness.evaluation.results_document`, execution in simulation
-from :func:`~clfd_bench.execution.evaluate.evaluate_run`. The format is documented, with a
+metrics from :func:`~clfd_bench.harness.evaluation.results_document`, and run by the function
+that runs a training run (:func:`clfd_bench.harness.run.run`: the run directory's lock,
+execution in simulation), with a source that trains nothing. The format is documented, with a
 script that writes it, in ``docs/predictions.md``.
 
 **Format.** For every learned task ``i`` (``0 <= i < M``) and every seen task ``j <= i``: the
@@ -527,6 +528,7 @@ def score_predictions(
         results_document,
         task_errors,
     )
+    from clfd_bench.harness.run import run as run_a_run
 
     if not isinstance(method_name, str) or not _LABEL.fullmatch(method_name):
         raise PredictionsError(f"--method-name {method_name!r}: use letters, digits and . _ + - "
@@ -581,16 +583,26 @@ def score_predictions(
                 timespec="seconds"),
         },
     }
-    with run.lock(f"clfd-bench score {ext.source} --out {run.path}"):
-        for i, row in enumerate(ext.predictions):
+    results = results_document(config, ds.name, tasks_, state, complete=True,
+                               provenance=provenance, checkpoint=None)
+    results["not_provided"] = _not_provided(ext.fields)
+    return run_a_run(_Scored(ext, results), run.path, sim=sim, sim_workers=sim_workers)
+
+
+@dataclass(frozen=True)
+class _Scored:
+    """The source of a run scored from predictions made elsewhere
+    (:class:`clfd_bench.harness.run.Source`): it trains nothing, it writes the predictions
+    and the scored ``results.json``."""
+
+    ext: ExternalPredictions
+    results: dict[str, Any]
+
+    def owner(self, out: Path) -> str:
+        return f"clfd-bench score {self.ext.source} --out {out}"
+
+    def produce(self, out: Path, after_task: Any, log: Any) -> dict[str, Any]:
+        run = RunDir(out)
+        for i, row in enumerate(self.ext.predictions):
             run.save_predictions(i, row)
-        results = results_document(config, ds.name, tasks_, state, complete=True,
-                                   provenance=provenance, checkpoint=None)
-        results["not_provided"] = _not_provided(ext.fields)
-        results = run.write_training_results(results)
-        if sim:
-            from clfd_bench.execution.evaluate import evaluate_run
-
-            results.update(evaluate_run(run.path, workers=sim_workers))
-    return results
-
+        return run.write_training_results(self.results)

@@ -1,6 +1,7 @@
 """The sequential protocol: learn the tasks in order; after each, predict every seen task.
 
-:func:`run_training` is what ``clfd-bench train`` runs. For task ``i`` of the dataset order:
+:func:`run_training` is what a training run runs (:func:`clfd_bench.harness.run.run`, behind
+``clfd-bench train`` and the grid's workers). For task ``i`` of the dataset order:
 
 1. seed the RNGs from ``(seed, i)`` (so a resumed run draws the same numbers), add task ``i``
    to every part's model and train it with the one training loop;

@@ -25,11 +25,10 @@ import numpy as np
 
 from clfd_bench.harness.evaluation import metric_part
 from clfd_bench.leaderboard.grid import RunSpec
-from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
+from clfd_bench.metrics.cl import CRITERIA, cl_score, cl_stability, final_model_size
 
 __all__ = ["MethodRow", "RunRecord", "aggregate", "quartiles", "error_metric_for"]
 
-CRITERIA = ("ACC", "REM", "MS", "TE", "FS", "SSS")
 EXEC_KEYS = ("ACC", "REM", "BWT")
 
 

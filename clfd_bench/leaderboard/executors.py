@@ -1,7 +1,9 @@
 """Executors: run the grid's training commands on local processes or on a Ray cluster.
 
-Both run exactly the same command (``clfd-bench train ...``) with the same environment
-(``CLFD_THREADS=1``, no progress bars), so they give the same results. A run that
+Both run exactly the same command, a grid worker (``python -m clfd_bench.harness.worker JOB``,
+:mod:`clfd_bench.harness.worker`, which runs the run with :func:`clfd_bench.harness.run.run`),
+with the same environment (``CLFD_THREADS=1``, no progress bars), so they give the same
+results; the worker's output is appended to the run's ``train.log``. A run that
 crashes is recorded in ``<run_dir>/failed.json`` with the end of its log and does not stop
 the grid.
 
@@ -32,7 +34,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, EXECUTORS, GridOptions, RunSpec
 from clfd_bench.procs import PARENT_ENV
 from clfd_bench.runs import RunDir
 
@@ -106,7 +108,7 @@ def _record(spec: RunSpec, root: Path, code: int, tail: str, seconds: float) -> 
 
 def _local_one(spec: RunSpec, root: Path) -> RunOutcome:
     start = time.perf_counter()
-    code, tail = _run_command(spec.train_argv(root), spec.run_dir(root))
+    code, tail = _run_command(spec.worker_argv(root), spec.run_dir(root))
     return _record(spec, root, code, tail, time.perf_counter() - start)
 
 
@@ -176,7 +178,7 @@ def _remote_train(spec_dict: dict, payload: bytes) -> tuple[int, str, bytes, flo
         root = Path(tmp)
         run_dir = spec.run_dir(root)
         _unpack(payload, run_dir)
-        code, tail = _run_command(spec.train_argv(root), run_dir)
+        code, tail = _run_command(spec.worker_argv(root), run_dir)
         return code, tail, _pack(run_dir), time.perf_counter() - start
 
 
@@ -224,15 +226,11 @@ def _ray(
             ray.shutdown()
 
 
-EXECUTORS = ("local", "ray")
-
 
 def execute_grid(
     specs: Iterable[RunSpec],
     root: Path,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
     on_done: Callable[[RunOutcome], None] = lambda outcome: None,
 ) -> list[RunOutcome]:
     """Run (or resume) every spec; returns one outcome per spec, in completion order.
@@ -240,14 +238,14 @@ def execute_grid(
     Args:
         specs: the runs still to do.
         root: the leaderboard's output directory (runs go to ``root/runs/...``).
-        executor: ``"local"`` (processes on this machine) or ``"ray"``.
-        workers: parallel processes for the local executor.
-        address: Ray cluster address (None: start a local Ray instance).
+        options: where they run: ``executor`` (``"local"``: processes on this machine, or
+            ``"ray"``), ``workers`` (parallel processes of the local executor), ``address``
+            (the Ray cluster's; None: start a local Ray instance).
         on_done: called with each outcome as it arrives (progress bars).
     """
     specs = list(specs)
-    if executor == "local":
-        return _local(specs, Path(root), workers, on_done)
-    if executor == "ray":
-        return _ray(specs, Path(root), address, on_done)
-    raise ValueError(f"unknown executor {executor!r}; valid: {', '.join(EXECUTORS)}")
+    if options.executor == "local":
+        return _local(specs, Path(root), options.workers, on_done)
+    if options.executor == "ray":
+        return _ray(specs, Path(root), options.address, on_done)
+    raise ValueError(f"unknown executor {options.executor!r}; valid: {', '.join(EXECUTORS)}")

@@ -2,26 +2,78 @@
 
 A run is identified by :class:`RunSpec`; its directory under the leaderboard's output is
 derived from the spec alone, so starting a leaderboard again finds finished runs and skips
-them, and a half-finished run resumes from its last finished task (the training command
-resumes by itself). Whether a run is finished is the run directory's to say
-(:meth:`clfd_bench.runs.RunDir.status`): every task trained and, with simulation, every
-prediction executed by the current simulator.
+them, and a half-finished run resumes from its last finished task (a grid worker,
+:mod:`clfd_bench.harness.worker`, resumes it by itself). Whether a run is finished is the
+run directory's to say (:meth:`clfd_bench.runs.RunDir.status`): every task trained and,
+with simulation, every prediction executed by the current simulator.
 """
 
 from __future__ import annotations
 
 import re
-import sys
 from dataclasses import asdict, dataclass
 from itertools import product
 from pathlib import Path
 from typing import Any
 
+from clfd_bench.harness.run import TrainSpec
+from clfd_bench.harness.worker import Job
 from clfd_bench.runs import RunDir, RunStatus
 
-__all__ = ["RunSpec", "make_grid", "reread_simulator", "run_state", "run_status"]
+__all__ = ["DEFAULT_OPTIONS", "EXECUTORS", "GridOptions", "RunSpec", "make_grid",
+           "reread_simulator", "run_state", "run_status"]
 
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
+
+EXECUTORS = ("local", "ray")
+"""Where a grid's runs can run (:mod:`clfd_bench.leaderboard.executors`)."""
+
+
+@dataclass(frozen=True)
+class GridOptions:
+    """The options every grid shares (``clfd-bench leaderboard``, ``paper run``, the
+    studies), one value from the command line to the executors: what each run does beyond its
+    method, seed and order, and where the runs run.
+
+    Attributes:
+        node: the runs' NODE variant (a named entry's own node wins; grids with NODE variants
+            of their own, the paper's and the loop study's, do not use it).
+        tasks: stop each run after this many tasks (None: all of the dataset's).
+        sim: execute each run's predictions in simulation.
+        executor: ``"local"`` (processes on this machine) or ``"ray"`` (:data:`EXECUTORS`).
+        workers: parallel local worker processes.
+        address: Ray cluster address (None: start a local Ray instance).
+
+    Raises:
+        InputError: ``workers`` below 1 or an unknown ``executor`` (one line naming the
+            option), when the value is made: before any run is planned.
+    """
+
+    node: str = "t"
+    tasks: int | None = None
+    sim: bool = True
+    executor: str = "local"
+    workers: int = 1
+    address: str | None = None
+
+    def __post_init__(self) -> None:
+        from clfd_bench.harness.validate import InputError, check_count
+
+        check_count("--workers", self.workers)
+        if self.executor not in EXECUTORS:
+            raise InputError(f"--executor {self.executor}: unknown executor; valid: "
+                             f"{', '.join(EXECUTORS)}")
+
+    @classmethod
+    def from_meta(cls, meta: dict[str, Any], **where: Any) -> GridOptions:
+        """The node, tasks and simulation a leaderboard's runs had (its ``leaderboard.json``
+        ``meta``), with ``where`` they run now (``executor``, ``workers``, ``address``)."""
+        return cls(node=meta.get("node", "t"), tasks=meta.get("tasks"),
+                   sim=bool(meta.get("sim", True)), **where)
+
+
+DEFAULT_OPTIONS = GridOptions()
+"""Every grid option at its default: NODE^T, every task, with simulation, one local worker."""
 
 
 @dataclass(frozen=True, order=True)
@@ -101,39 +153,30 @@ class RunSpec:
         """The run's directory below ``root/runs``."""
         return Path(root) / "runs" / self.name
 
-    def train_argv(self, root: Path) -> list[str]:
-        """The ``clfd-bench train`` command line that performs (or resumes) this run."""
-        argv = [
-            sys.executable, "-m", "clfd_bench.cli.main", "train",
-            "--method", self.method, "--dataset", self.dataset, "--profile", self.profile,
-            "--seed", str(self.seed), "--order", str(self.order), "--node", self.node,
-            "--out", str(self.run_dir(root)),
-        ]  # fmt: skip
-        if self.tasks is not None:
-            argv += ["--tasks", str(self.tasks)]
-        if not self.sim:
-            argv.append("--no-sim")
-        if self.config_file is not None:
-            argv += ["--config", self.config_file]
-        for setting in self.settings:
-            argv += ["--set", setting]
-        return argv
+    def train_spec(self) -> TrainSpec:
+        """What the run trains (:class:`~clfd_bench.harness.run.TrainSpec`)."""
+        return TrainSpec(self.method, self.dataset, self.profile, self.seed, self.order,
+                         self.node, self.tasks, tuple(self.settings), self.config_file)
+
+    def job(self, root: Path) -> Job:
+        """The grid worker's job that performs (or resumes) this run below ``root``."""
+        return Job(self.train_spec(), str(self.run_dir(root)), self.sim)
+
+    def worker_argv(self, root: Path) -> list[str]:
+        """The command that performs (or resumes) this run below ``root``: a grid worker
+        (``python -m clfd_bench.harness.worker JOB``, :mod:`clfd_bench.harness.worker`)."""
+        return self.job(root).argv()
 
     @property
     def settings(self) -> list[str]:
         """The overrides as ``key=value`` strings, as ``--set`` takes them."""
         return [f"{key}={value}" for key, value in self.overrides]
 
-    def config(self):
+    def config(self, arg_names: dict[str, str] | None = None):
         """The run's resolved configuration (:class:`~clfd_bench.harness.config.RunConfig`);
-        raises ``ConfigError`` for an unknown key or value before anything is trained."""
-        from clfd_bench.harness.config import resolve_config
-
-        return resolve_config(
-            self.method, self.dataset, self.profile, seed=self.seed, order=self.order,
-            node=self.node, tasks=self.tasks, overrides=self.settings,
-            config_file=self.config_file,
-        )  # fmt: skip
+        raises ``ConfigError`` for an unknown key or value before anything is trained
+        (``arg_names``: the options run-level values came from, named in its errors)."""
+        return self.train_spec().config(arg_names)
 
     def num_tasks(self) -> int:
         """How many tasks the run learns: ``tasks`` or all of the dataset's."""
@@ -153,12 +196,11 @@ def make_grid(
     profile: str,
     seeds: list[int],
     orders: list[int],
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = GridOptions(),
     configs: dict[str, str] | None = None,
 ) -> list[RunSpec]:
-    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order.
+    """Every (method, seed, order) combination as a :class:`RunSpec`, in a stable order, with
+    the node, tasks and simulation of ``options``.
 
     ``methods`` may name entries (:data:`~clfd_bench.leaderboard.entries.ENTRIES`): their
     runs train the entry's method with the entry's node and settings. ``configs``: method or
@@ -172,11 +214,12 @@ def make_grid(
     if not methods or not seeds or not orders:
         raise ValueError("a grid needs at least one method, one seed and one order")
     specs = []
+    tasks, sim = options.tasks, options.sim
     for m, o, s in product(methods, orders, seeds):
         config_file = (configs or {}).get(m)
         entry = ENTRIES.get(m)
         if entry is None:
-            specs.append(RunSpec(dataset, m, profile, s, o, node, tasks, sim,
+            specs.append(RunSpec(dataset, m, profile, s, o, options.node, tasks, sim,
                                  config_file=config_file))
         else:
             specs.append(RunSpec(dataset, entry.method, profile, s, o, entry.node, tasks, sim,

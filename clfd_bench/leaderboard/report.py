@@ -54,33 +54,47 @@ import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from clfd_bench.execution.execute import FAILURE_KINDS
 from clfd_bench.io import atomic_write_json, atomic_write_text
-from clfd_bench.leaderboard.aggregate import CRITERIA, MethodRow
+from clfd_bench.leaderboard.aggregate import MethodRow
 from clfd_bench.leaderboard.entries import ENTRIES
+from clfd_bench.metrics.cl import CRITERIA
 from clfd_bench.metrics.paper_numbers import DATASET_LABELS
 from clfd_bench.node_variants import node_label
 
-__all__ = ["COLUMNS", "LEADERBOARD_JSON", "NOT_PROVIDED", "TIE", "LeaderboardRun",
+__all__ = ["COLUMNS", "LEADERBOARD_JSON", "Column", "NOT_PROVIDED", "TIE", "LeaderboardRun",
            "PaperRanking", "format_cell", "leaderboard_figures", "leaderboard_runs",
            "paper_ranking", "paper_values", "rank", "read_leaderboard", "write_tables"]
 
-COLUMNS: tuple[tuple[str, str], ...] = (
-    ("CL_score", "CL_score"),
-    ("CL_stability", "CL_stab"),
-    *((k, k) for k in CRITERIA),
-    ("BWT", "BWT"),
-    ("exec_ACC", "exec ACC"),
-    ("exec_REM", "exec REM"),
-    ("exec_BWT", "exec BWT"),
-    ("exec_CL_score", "exec CL_score"),
-    ("train_time_s", "train s"),
-    ("train_cpu_s", "train CPU s"),
-    ("final_params", "params"),
+class Column(NamedTuple):
+    """One column of the leaderboard: ``key`` in :attr:`MethodRow.values` and in
+    ``leaderboard.json``'s rows' ``metrics`` (and the CSV's ``<key>_median`` ...), ``head``
+    its header (its name in :mod:`clfd_bench.metrics.glossary`), ``group`` what it measures:
+    ``trajectory`` (DTW under the paper's threshold), ``execution`` (on the simulated robot)
+    or ``cost``."""
+
+    key: str
+    head: str
+    group: str
+
+
+COLUMNS: tuple[Column, ...] = (
+    Column("CL_score", "CL_score", "trajectory"),
+    Column("CL_stability", "CL_stab", "trajectory"),
+    *(Column(k, k, "trajectory") for k in CRITERIA),
+    Column("BWT", "BWT", "trajectory"),
+    Column("exec_ACC", "exec ACC", "execution"),
+    Column("exec_REM", "exec REM", "execution"),
+    Column("exec_BWT", "exec BWT", "execution"),
+    Column("exec_CL_score", "exec CL_score", "execution"),
+    Column("train_time_s", "train s", "cost"),
+    Column("train_cpu_s", "train CPU s", "cost"),
+    Column("final_params", "params", "cost"),
 )
-"""(key in MethodRow.values, column header), in table order."""
+"""The leaderboard's columns, in table order: the one list the Markdown, CSV and JSON tables
+and the site's table (:mod:`clfd_bench.site.build`) are written from."""
 
 
 LEADERBOARD_JSON = "leaderboard.json"
@@ -298,7 +312,7 @@ def _cell(row: MethodRow, key: str) -> str:
 
 
 def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) -> str:
-    heads = [h for _, h in COLUMNS]
+    heads = [c.head for c in COLUMNS]
     if paper.label:  # the paper's rank after ours, its CL_score after ours
         head = ["#", "paper #", "method", "runs", heads[0], "paper CL_score", *heads[1:]]
     else:
@@ -313,7 +327,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
         + ".",
         "Cells: median [IQR] over runs. ACC, REM, BWT: trajectory accuracy (DTW under the "
         "paper's threshold); exec ACC/REM/BWT: the same from executing predictions in "
-        "simulation. CL_score/CL_stability over ACC, REM, MS, TE, FS, SSS (FS across the "
+        f"simulation. CL_score/CL_stability over {', '.join(CRITERIA)} (FS across the "
         "methods compared here); exec CL_score: CL_score with exec ACC and exec REM. train s / "
         "train CPU s: wall-clock and CPU seconds of training (one process per run).",
         "",
@@ -322,7 +336,7 @@ def _markdown(rows: list[MethodRow], meta: dict[str, Any], paper: PaperRanking) 
     ]
     for idx, row in enumerate(rows, 1):
         runs = f"{row.runs_ok}" + (f" (+{row.runs_failed} failed)" if row.runs_failed else "")
-        cells = [_cell(row, k) for k, _ in COLUMNS]
+        cells = [_cell(row, c.key) for c in COLUMNS]
         if paper.label:
             m = row.method.lower()
             p_rank = str(paper.ranks[m]) if m in paper.ranks else "-"
@@ -401,13 +415,13 @@ def _csv(rows: list[MethodRow], paper: PaperRanking) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer)
     header = ["rank", "method", "runs_ok", "runs_failed"]
-    for key, _ in COLUMNS:
+    for key, *_ in COLUMNS:
         header += [f"{key}_median", f"{key}_q1", f"{key}_q3"]
     header += ["paper_rank", "paper_cl_score"]  # empty when no paper table matches
     writer.writerow(header)
     for idx, row in enumerate(rows, 1):
         out: list[Any] = [idx, row.method, row.runs_ok, row.runs_failed]
-        for key, _ in COLUMNS:
+        for key, *_ in COLUMNS:
             q1, q3 = row.iqr(key)
             out += [row.median(key), q1, q3]
         out += [paper.ranks.get(row.method.lower(), ""), paper.scores.get(row.method.lower(), "")]
@@ -452,7 +466,7 @@ def write_tables(rows: list[MethodRow], out: Path, meta: dict[str, Any]) -> list
                         "q3": _json_value(row.iqr(key)[1]),
                         "values": [v for v in row.values.get(key, []) if not math.isnan(v)],
                     }
-                    for key, _ in COLUMNS
+                    for key, *_ in COLUMNS
                 },
             }
             for idx, row in enumerate(ranked, 1)
@@ -522,14 +536,13 @@ def leaderboard_runs(out: str | Path, doc: dict[str, Any]) -> list[LeaderboardRu
     """The runs of a leaderboard read with :func:`read_leaderboard`, in its grid's order
     (method, order, seed), then the included ones. Run directories are found from the grid
     (:func:`clfd_bench.leaderboard.grid.make_grid`), as the leaderboard placed them."""
-    from clfd_bench.leaderboard.grid import make_grid
+    from clfd_bench.leaderboard.grid import GridOptions, make_grid
 
     out = Path(out)
     meta = doc["meta"]
     statuses = meta.get("runs") or {}
     specs = make_grid(meta["dataset"], list(meta["methods"]), meta["profile"],
-                      list(meta["seeds"]), list(meta["orders"]), meta.get("node", "t"),
-                      meta.get("tasks"), bool(meta.get("sim", True)))
+                      list(meta["seeds"]), list(meta["orders"]), GridOptions.from_meta(meta))
     runs = [LeaderboardRun(s.label, s.name, s.run_dir(out), str(statuses.get(s.name, "missing")),
                            s.seed, s.order) for s in specs]
     for inc in meta.get("included") or []:

@@ -9,6 +9,8 @@ from pathlib import Path
 from clfd_bench.leaderboard.aggregate import MethodRow, RunRecord, aggregate
 from clfd_bench.leaderboard.executors import RunOutcome, execute_grid
 from clfd_bench.leaderboard.grid import (
+    DEFAULT_OPTIONS,
+    GridOptions,
     RunSpec,
     make_grid,
     reread_simulator,
@@ -66,18 +68,14 @@ def validate_plan(specs: list[RunSpec], out: Path) -> None:
         ConfigError, UnknownMethodError, InputError, DatasetError: one line naming the bad
             value and where it came from (``clfd-bench`` prints it and exits with code 2).
     """
-    from clfd_bench.harness.config import ConfigError, resolve_config
+    from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.validate import check_dataset, check_out_dir
 
     out = Path(out)
     check_out_dir(out)
     runs_root = (out / "runs").resolve()
     for spec in specs:
-        resolve_config(
-            spec.method, spec.dataset, spec.profile, seed=spec.seed, order=spec.order,
-            node=spec.node, tasks=spec.tasks, overrides=spec.settings, arg_names=GRID_ARG_NAMES,
-            config_file=spec.config_file,
-        )  # fmt: skip
+        spec.config(GRID_ARG_NAMES)
         if not spec.run_dir(out).resolve().is_relative_to(runs_root):  # pragma: no cover
             raise ConfigError(f"run {spec.name!r} would be written outside {out}/runs")
     for dataset, order in sorted({(s.dataset, s.order) for s in specs}):
@@ -180,25 +178,23 @@ class GridRun:
 def run_specs(
     specs: list[RunSpec],
     out: Path,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
     desc: str = "grid",
 ) -> GridRun:
     """Run (or resume) the specs that are not done yet, then read every run's state.
 
     The building block of the leaderboard and of the studies (:mod:`clfd_bench.studies`):
     finished runs are skipped, half-finished ones resume, a crash is recorded in the run's
-    ``failed.json`` and the grid goes on. Runs go to ``out/runs/<spec.name>``.
+    ``failed.json`` and the grid goes on. Runs go to ``out/runs/<spec.name>``, on the
+    executor of ``options``.
     """
     out = Path(out)
     validate_plan(specs, out)  # before anything is launched or created
     with exclusive(out, f"clfd-bench {desc}"):  # one grid at a time on an output folder
-        return _run_specs(specs, out, executor, workers, address, desc)
+        return _run_specs(specs, out, options, desc)
 
 
-def _run_specs(specs: list[RunSpec], out: Path, executor: str, workers: int,
-               address: str | None, desc: str) -> GridRun:
+def _run_specs(specs: list[RunSpec], out: Path, options: GridOptions, desc: str) -> GridRun:
     todo = [s for s in specs if run_status(s, out) != "done"]
     skipped = [s for s in specs if s not in todo]
     failed: list[RunOutcome] = []
@@ -213,7 +209,7 @@ def _run_specs(specs: list[RunSpec], out: Path, executor: str, workers: int,
                 failed.append(outcome)
 
         try:
-            execute_grid(todo, out, executor, workers, address, on_done)
+            execute_grid(todo, out, options, on_done)
         finally:
             bar.close()
     # A run can end without a crash and still not count: e.g. its predictions were executed
@@ -238,40 +234,36 @@ def run_leaderboard(
     seeds: list[int],
     orders: list[int],
     out: Path,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
     include: list[Path] | tuple[Path, ...] = (),
     configs: dict[str, str] | None = None,
 ) -> LeaderboardResult:
     """Run the grid's missing runs (finished ones are skipped), then write the leaderboard.
 
     Writes into ``out``: ``runs/...`` (one directory per run), ``leaderboard.md``, ``.csv``,
-    ``.json`` and the figures (PNG). ``include``: finished run directories from elsewhere put
-    in beside the grid's runs (:func:`included_records`), e.g. predictions scored with
-    ``clfd-bench score``; they are read, never written. ``configs``: method -> its
-    hyperparameter file (``--config METHOD=PATH``; a method of ``methods`` each).
+    ``.json`` and the figures (PNG). ``options``: the runs' node, tasks and simulation, and
+    where they run (:class:`~clfd_bench.leaderboard.grid.GridOptions`). ``include``: finished
+    run directories from elsewhere put in beside the grid's runs (:func:`included_records`),
+    e.g. predictions scored with ``clfd-bench score``; they are read, never written.
+    ``configs``: method -> its hyperparameter file (``--config METHOD=PATH``; a method of
+    ``methods`` each).
     """
-    from clfd_bench.harness.validate import InputError, check_count
+    from clfd_bench.harness.validate import InputError
 
     check_methods(methods)  # an unknown name fails here, listing the valid ones
     for flag, values in (("--methods", methods), ("--seeds", seeds), ("--orders", orders)):
         if not values:
             raise InputError(f"{flag} is empty; a grid needs at least one value")
-    check_count("--workers", workers)
     stray = sorted(set(configs or {}) - set(methods))
     if stray:
         raise InputError(f"--config {stray[0]}=...: {stray[0]!r} is not in --methods "
                          f"({', '.join(methods)}); name the method as in --methods")
     start = time.perf_counter()
     out = Path(out)
-    specs = make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim, configs)
+    specs = make_grid(dataset, methods, profile, seeds, orders, options, configs)
     # Checked before any work; read, never written.
     extra = included_records([Path(p) for p in include], specs, methods) if include else []
-    grid = run_specs(specs, out, executor, workers, address, desc=f"grid {dataset}")
+    grid = run_specs(specs, out, options, desc=f"grid {dataset}")
     records = grid.records + extra
     labels = methods + list(dict.fromkeys(r.spec.method for r in extra))
     rows = aggregate(records, labels)
@@ -283,10 +275,10 @@ def run_leaderboard(
         "profile": profile,
         "seeds": seeds,
         "orders": orders,
-        "node": node,
-        "tasks": tasks,
-        "sim": sim,
-        "executor": executor,
+        "node": options.node,
+        "tasks": options.tasks,
+        "sim": options.sim,
+        "executor": options.executor,
         "figures": [p.name for p in figures],  # beside the tables: the folder can move
         "runs": {s.name: r.status for s, r in zip(specs, grid.records, strict=True)},
         "included": [{"path": str(p), "method": r.spec.method,

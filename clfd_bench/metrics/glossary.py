@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from clfd_bench.metrics.cl import CRITERIA
+
 __all__ = ["BEGIN", "END", "GLOSSARY", "SECTIONS", "Term", "markdown", "plain",
            "replace_readme_block", "readme_block", "tooltip"]
 
@@ -46,7 +48,7 @@ class Term:
                              f"or None, got {self.better!r}")
 
 
-_CRITERIA = "ACC, REM, MS, TE, FS and SSS"
+_CRITERIA = f"{', '.join(CRITERIA[:-1])} and {CRITERIA[-1]}"
 
 SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
     (

@@ -15,6 +15,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
+from clfd_bench.metrics.cl import CRITERIA
 from clfd_bench.resources import resource_path
 
 __all__ = [
@@ -34,7 +35,9 @@ __all__ = [
 
 DATASET_LABELS = {"lasa": "LASA", "helloworld": "HelloWorld", "robotasks": "RoboTasks"}
 """How the paper names the datasets it has tables for."""
-CL_COLUMNS = ("ACC", "REM", "MS", "TE", "FS", "SSS", "CL_score", "CL_stability")
+CL_COLUMNS = (*CRITERIA, "CL_score", "CL_stability")
+"""The columns of the paper's CL tables: the criteria (:data:`clfd_bench.metrics.cl.CRITERIA`)
+and the two scores over them."""
 INFERENCE_COLUMNS = (
     "generate_ms", "generate_hz", "step_ms", "step_hz", "integrate_ms", "integrate_hz",
 )  # fmt: skip

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from clfd_bench.io import atomic_write_bytes, atomic_write_text
+from clfd_bench.leaderboard.report import COLUMNS
 from clfd_bench.leaderboard.report import format_cell as _fmt
 from clfd_bench.metrics.glossary import GLOSSARY, tooltip
 from clfd_bench.site.wall import (
@@ -56,24 +57,8 @@ from clfd_bench.studies.profile_compare import table as comparison_table
 
 __all__ = ["WALL_STYLE", "SiteResult", "best_marks", "build_site"]
 
-#: (key in leaderboard.json rows' metrics, header, group, key in the paper's CL table).
-_COLUMNS = (
-    ("CL_score", "CL_score", "trajectory", "CL_score"),
-    ("CL_stability", "CL_stab", "trajectory", "CL_stability"),
-    ("ACC", "ACC", "trajectory", "ACC"),
-    ("REM", "REM", "trajectory", "REM"),
-    ("BWT", "BWT", "trajectory", None),
-    ("MS", "MS", "trajectory", "MS"),
-    ("TE", "TE", "trajectory", "TE"),
-    ("FS", "FS", "trajectory", "FS"),
-    ("SSS", "SSS", "trajectory", "SSS"),
-    ("exec_ACC", "ACC", "execution", None),
-    ("exec_REM", "REM", "execution", None),
-    ("exec_BWT", "BWT", "execution", None),
-    ("exec_CL_score", "CL_score", "execution", None),
-    ("train_time_s", "train s", "cost", None),
-    ("final_params", "params", "cost", None),
-)
+#: The titles of the leaderboard's column groups (``Column.group``, of
+#: :data:`clfd_bench.leaderboard.report.COLUMNS`, the table's columns).
 _GROUPS = {"trajectory": "Trajectory (DTW under the paper's threshold)",
            "execution": "Execution on the simulated Panda", "cost": "Cost"}
 _STATIC = ("site.css", "sort.js", "wall.js")
@@ -190,6 +175,7 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
            pages: dict[str, list[tuple[str, str]]]) -> dict[str, Any]:
     """The leaderboard table's header groups and rows (cells with text and sort value)."""
     from clfd_bench.execution.execute import FAILURE_KINDS
+    from clfd_bench.metrics.paper_numbers import CL_COLUMNS  # shown under ours
 
     rows = []
     kinds = [k for k in FAILURE_KINDS
@@ -198,7 +184,7 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
         method = str(row["method"])
         ours = paper.get(method.lower(), {})
         cells = []
-        for key, _, group, paper_key in _COLUMNS:
+        for key, _, group in COLUMNS:
             metric = (row.get("metrics") or {}).get(key) or {}
             median, q1, q3 = metric.get("median"), metric.get("q1"), metric.get("q3")
             text = ("—" if median is None and key in (row.get("not_provided") or [])
@@ -210,7 +196,7 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
                 "text": text, "sort": "" if median is None else f"{median:.9g}", "tip": tip,
                 "shown": _shown(median, key),
                 "group": group,
-                "paper": (f"{ours[paper_key]:.2f}" if paper_key and paper_key in ours else None),
+                "paper": (f"{ours[key]:.2f}" if key in CL_COLUMNS and key in ours else None),
             })
         failures = row.get("exec_failures")
         rows.append({
@@ -225,21 +211,21 @@ def _table(doc: dict[str, Any], paper: dict[str, dict[str, float]],
             "fails_cell": {"mark": None},
         })
     names = [r["name"] for r in rows]
-    for c, (key, _, _, _) in enumerate(_COLUMNS):
+    for c, (key, _, _) in enumerate(COLUMNS):
         column = [r["cells"][c] for r in rows]
         _mark_column(column, [cell["shown"] for cell in column], _better(key), names)
     _mark_column([r["fails_cell"] for r in rows],
                  [None if r["failures_total"] is None else float(r["failures_total"])
                   for r in rows], _better("exec_failures"), names)
     groups = []
-    for _, _, group, _ in _COLUMNS:
+    for _, _, group in COLUMNS:
         if groups and groups[-1]["key"] == group:
             groups[-1]["span"] += 1
         else:
             groups.append({"key": group, "title": _GROUPS[group], "span": 1})
     return {"groups": groups,
             "columns": [{"key": k, "head": h, "group": g, "title": _header_tip(k),
-                         "better": _better(k) or ""} for k, h, g, _ in _COLUMNS],
+                         "better": _better(k) or ""} for k, h, g in COLUMNS],
             "tips": {k: _header_tip(k) for k in _HEADER_KEYS},
             "better": {k: _better(k) or "" for k in _HEADER_KEYS},
             "rows": rows, "kinds": kinds}

@@ -32,7 +32,7 @@ import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import RunRecord
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, GridOptions, RunSpec
 from clfd_bench.metrics.trajectory import self_crossings
 from clfd_bench.runs import RunDir
 
@@ -44,9 +44,11 @@ MIN_STEP_FRACTION = 0.005
 
 
 def study_specs(dataset: str, methods: list[str], profile: str, seeds: list[int],
-                sim: bool = True, tasks: int | None = None) -> list[RunSpec]:
-    """One run per method x NODE variant (``t``, ``i``) x seed, task order 0: the paper grid's
-    runs, so a grid trained before is reused."""
+                options: GridOptions = DEFAULT_OPTIONS) -> list[RunSpec]:
+    """One run per method x NODE variant (``t``, ``i``; ``options.node`` is not used) x
+    seed, task order 0, with the tasks and simulation of ``options``: the paper grid's runs,
+    so a grid trained before is reused."""
+    tasks, sim = options.tasks, options.sim
     return [RunSpec(dataset, m, profile, s, 0, node, tasks, sim)
             for m in methods for node in ("t", "i") for s in seeds]
 

@@ -25,7 +25,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, GridOptions, RunSpec
 
 __all__ = [
     "FULL_GRID_RUNS",
@@ -91,10 +91,11 @@ def paper_grid(
     seeds: Sequence[int] | None = None,
     orders: Sequence[int] | None = None,
     profile: str = PAPER_PROFILE,
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> list[RunSpec]:
-    """The paper's grid, narrowed to the given values (None: the paper's full set).
+    """The paper's grid, narrowed to the given values (None: the paper's full set), with the
+    tasks and simulation of ``options`` (its NODE variants are ``nodes``, not
+    ``options.node``).
 
     A method or NODE variant applies only to the datasets the paper ran it on (``--methods si``
     with ``--datasets lasa,robotasks`` gives LASA's SI runs only); one that applies to none of
@@ -135,6 +136,7 @@ def paper_grid(
                 )
     if any(s < 0 for s in seeds):
         raise GridError(f"seeds must be >= 0, got {seeds}")
+    tasks, sim = options.tasks, options.sim
     if tasks is not None and tasks < 1:
         raise GridError(f"--tasks must be >= 1, got {tasks}")
     for d in datasets:

@@ -42,7 +42,7 @@ from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
 from clfd_bench.leaderboard.grid import RunSpec
 from clfd_bench.leaderboard.runner import collect
-from clfd_bench.metrics.paper_numbers import DATASET_LABELS
+from clfd_bench.metrics.paper_numbers import CL_COLUMNS, DATASET_LABELS
 from clfd_bench.studies.paper_grid import PAPER_GRID, TRAIN_TIME_TABLES
 
 __all__ = [
@@ -60,11 +60,6 @@ __all__ = [
     "table_specs",
     "write_outputs",
 ]
-
-CL_COLUMNS: tuple[str, ...] = (
-    "ACC", "REM", "MS", "TE", "FS", "SSS", "CL_score", "CL_stability",
-)  # fmt: skip
-"""The paper's CL table columns (same order as :data:`paper_numbers.CL_COLUMNS`)."""
 
 EXEC_COLUMNS: tuple[str, ...] = ("exec_ACC", "exec_REM", "exec_CL_score")
 """Our extra columns: ACC and REM of execution success in simulation, and CL_score with them

@@ -33,11 +33,11 @@ from typing import Any
 import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text, json_safe
-from clfd_bench.leaderboard.aggregate import CRITERIA, RunRecord, quartiles
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.aggregate import RunRecord, quartiles
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, GridOptions, RunSpec
 from clfd_bench.leaderboard.plots import _plt, _save
 from clfd_bench.leaderboard.runner import run_specs
-from clfd_bench.metrics.cl import cl_score, cl_stability, final_model_size
+from clfd_bench.metrics.cl import CRITERIA, cl_score, cl_stability, final_model_size
 from clfd_bench.node_variants import node_label
 
 __all__ = [
@@ -170,13 +170,13 @@ def sensitivity_specs(
     dataset: str,
     profile: str,
     seed: int,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> list[RunSpec]:
-    """One :class:`RunSpec` per drawn configuration (its values as ``overrides``)."""
+    """One :class:`RunSpec` per drawn configuration (its values as ``overrides``), with the
+    node, tasks and simulation of ``options``."""
     return [
-        RunSpec(dataset, d.method, profile, seed, 0, node, tasks, sim, overrides=d.values)
+        RunSpec(dataset, d.method, profile, seed, 0, options.node, options.tasks, options.sim,
+                overrides=d.values)
         for d in draws
     ]
 
@@ -188,9 +188,7 @@ def plan_sensitivity(
     seed: int,
     profile: str,
     ranges: Ranges | None = None,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> tuple[Ranges, list[ConfigDraw], list[RunSpec]]:
     """The study's ranges, draws and runs, each run's configuration checked before any
     training (``ValueError`` / ``ConfigError`` for a bad range or a key a method lacks).
@@ -200,7 +198,7 @@ def plan_sensitivity(
     """
     ranges = apply_ranges(default_ranges(), methods, []) if ranges is None else ranges
     draws = draw_configs(methods, configs, seed, ranges)
-    specs = sensitivity_specs(draws, dataset, profile, seed, node, tasks, sim)
+    specs = sensitivity_specs(draws, dataset, profile, seed, options)
     for spec in specs:
         spec.config()
     return ranges, draws, specs
@@ -461,12 +459,7 @@ def run_sensitivity_study(
     profile: str,
     out: Path,
     ranges: Ranges | None = None,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> SensitivityResult:
     """Draw the configurations, run (or resume) their runs, then write tables and figure.
 
@@ -477,29 +470,32 @@ def run_sensitivity_study(
         ranges: ``{method: {key: (low, high)}}``; default the paper's
             (:func:`default_ranges`).
         seed: seeds both the draw and every training run.
+        options: the runs' node, tasks and simulation, and where they run
+            (:class:`~clfd_bench.leaderboard.grid.GridOptions`).
     """
-    ranges, draws, specs = plan_sensitivity(
-        dataset, methods, configs, seed, profile, ranges, node=node, tasks=tasks, sim=sim
-    )
+    ranges, draws, specs = plan_sensitivity(dataset, methods, configs, seed, profile, ranges,
+                                            options)
     start = time.perf_counter()
     out = Path(out)
     atomic_write_json(out / "configs.json", {
-        "seed": seed, "dataset": dataset, "profile": profile, "node": node, "tasks": tasks,
+        "seed": seed, "dataset": dataset, "profile": profile, "node": options.node,
+        "tasks": options.tasks,
         "ranges": {m: {k: list(v) for k, v in r.items()} for m, r in ranges.items()},
         "draws": [{"method": d.method, "index": d.index, "values": dict(d.values),
                    "run": s.name} for d, s in zip(draws, specs, strict=True)],
     })  # fmt: skip
-    grid = run_specs(specs, out, executor, workers, address, desc="sensitivity study")
+    grid = run_specs(specs, out, options, desc="sensitivity study")
     scores = config_scores(grid.records, methods)
     summary = summarize(scores, methods)
     title = (f"{dataset}: sensitivity to the regularisation hyperparameter ({profile}"
-             + (f", {tasks} tasks" if tasks else "") + ")")  # fmt: skip
+             + (f", {options.tasks} tasks" if options.tasks else "") + ")")  # fmt: skip
     fig = sensitivity_figure(scores, summary, ranges, title)
     figure = _save(fig, out / "sensitivity.png")
     _plt().close(fig)
     meta = {
         "dataset": dataset, "methods": methods, "configs": configs, "seed": seed,
-        "profile": profile, "node": node, "tasks": tasks, "sim": sim, "executor": executor,
+        "profile": profile, "node": options.node, "tasks": options.tasks, "sim": options.sim,
+        "executor": options.executor,
         "ranges": {m: {k: list(v) for k, v in r.items()} for m, r in ranges.items()},
         "dropped_criteria": list(DROPPED), "figure": str(figure),
     }  # fmt: skip

@@ -28,7 +28,7 @@ import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text, json_safe
 from clfd_bench.leaderboard.aggregate import RunRecord, aggregate
-from clfd_bench.leaderboard.grid import RunSpec, make_grid
+from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, GridOptions, RunSpec, make_grid
 from clfd_bench.leaderboard.plots import _errors_after, _median_band, _plt, _save
 from clfd_bench.leaderboard.runner import run_specs
 from clfd_bench.node_variants import node_label
@@ -68,16 +68,14 @@ def order_specs(
     orders: list[int],
     seeds: list[int],
     profile: str,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> list[RunSpec]:
     """Every (dataset, method, order, seed) run of the study, in a stable order."""
     if not datasets:
         raise ValueError("the order study needs at least one dataset")
     specs: list[RunSpec] = []
     for dataset in datasets:
-        specs += make_grid(dataset, methods, profile, seeds, orders, node, tasks, sim)
+        specs += make_grid(dataset, methods, profile, seeds, orders, options)
     return specs
 
 
@@ -387,17 +385,13 @@ def run_order_study(
     seeds: list[int],
     profile: str,
     out: Path,
-    node: str = "t",
-    tasks: int | None = None,
-    sim: bool = True,
-    executor: str = "local",
-    workers: int = 1,
-    address: str | None = None,
+    options: GridOptions = DEFAULT_OPTIONS,
 ) -> OrderStudyResult:
     """Run (or resume) the study's runs, then write the tables and one figure per dataset.
 
     Writes into ``out``: ``runs/...`` (one directory per run), ``order_table.md``, ``.csv``,
-    ``.json`` and ``order_<dataset>.png``.
+    ``.json`` and ``order_<dataset>.png``. ``options``: the runs' node, tasks and simulation,
+    and where they run (:class:`~clfd_bench.leaderboard.grid.GridOptions`).
     """
     from clfd_bench.methods import get_method_class
 
@@ -408,8 +402,8 @@ def run_order_study(
             task_names(dataset, order)  # unknown dataset / order fails before training
     start = time.perf_counter()
     out = Path(out)
-    specs = order_specs(datasets, methods, orders, seeds, profile, node, tasks, sim)
-    grid = run_specs(specs, out, executor, workers, address, desc="order study")
+    specs = order_specs(datasets, methods, orders, seeds, profile, options)
+    grid = run_specs(specs, out, options, desc="order study")
     cells = order_table(grid.records, methods)
     spread = method_spread(cells)
     figures: dict[str, str] = {}
@@ -419,7 +413,8 @@ def run_order_study(
         _plt().close(fig)
     meta = {
         "datasets": datasets, "methods": methods, "orders": orders, "seeds": seeds,
-        "profile": profile, "node": node, "tasks": tasks, "sim": sim, "executor": executor,
+        "profile": profile, "node": options.node, "tasks": options.tasks, "sim": options.sim,
+        "executor": options.executor,
         "figures": figures,
         "runs": {r.spec.name: r.status for r in grid.records},
     }  # fmt: skip

@@ -27,19 +27,24 @@ import numpy as np
 
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.leaderboard.aggregate import RunRecord
-from clfd_bench.leaderboard.grid import RunSpec
+from clfd_bench.leaderboard.grid import GridOptions, RunSpec
 
 __all__ = ["TimeRow", "plot_task_time", "study_specs", "summarize", "write_outputs"]
 
+_WITHOUT_SIM = GridOptions(sim=False)
+
 
 def study_specs(dataset: str, methods: list[str], regs: list[str], profile: str,
-                seeds: list[int], node: str = "t", tasks: int | None = None) -> list[RunSpec]:
-    """One run per method x regulariser mode x seed (no simulation), labelled
-    ``"<method> <mode>"`` (with the NODE variant unless NODE^T)."""
+                seeds: list[int], options: GridOptions = _WITHOUT_SIM
+                ) -> list[RunSpec]:
+    """One run per method x regulariser mode x seed, with the node, tasks and simulation of
+    ``options`` (the study's command runs them without simulation: training times are what
+    it measures), labelled ``"<method> <mode>"`` (with the NODE variant unless NODE^T)."""
     from clfd_bench.node_variants import node_label
 
+    node = options.node
     suffix = "" if node == "t" else f" ({node_label(node)})"
-    return [RunSpec(dataset, m, profile, s, node=node, tasks=tasks, sim=False,
+    return [RunSpec(dataset, m, profile, s, node=node, tasks=options.tasks, sim=options.sim,
                     overrides=(("hnet_reg", r),), entry=f"{m} {r}{suffix}")
             for m in methods for r in regs for s in seeds]
 

@@ -1,0 +1,96 @@
+"""A grid's worker: one training run in a process of its own, started as
+``python -m clfd_bench.harness.worker JOB``.
+
+JOB is a JSON object (:class:`Job`): what to train (:class:`~clfd_bench.harness.run.TrainSpec`),
+the run directory, whether to execute in simulation. The grid's executors
+(:mod:`clfd_bench.leaderboard.executors`) start it with its output appended to the run's
+``train.log``; it runs the run with :func:`clfd_bench.harness.run.run`, as ``clfd-bench train``
+does, and resumes a half-finished run after its last finished task. First thing, it asks to
+be killed when the grid that started it dies (:func:`clfd_bench.procs.die_with_parent_from_env`),
+so even a SIGKILLed grid leaves no worker training behind.
+
+Exit codes (:func:`clfd_bench.harness.run.checked_run`): 0 done; 2 a bad job, input or run
+directory (one line, ``clfd-bench worker: error: ...``); 1 training diverged, or a crash (its
+traceback).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from clfd_bench.harness.run import TrainSpec
+
+__all__ = ["ENTRY_POINT", "Job", "main"]
+
+ENTRY_POINT = "clfd_bench.harness.worker"
+"""The module a worker process runs (``python -m``)."""
+
+_PROG = "clfd-bench worker"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run for a worker: what to train, where, and whether to execute in simulation."""
+
+    train: TrainSpec
+    out: str
+    sim: bool = True
+    sim_workers: int = 1
+
+    def to_json(self) -> str:
+        return json.dumps({"train": self.train.to_dict(), "out": self.out, "sim": self.sim,
+                           "sim_workers": self.sim_workers})
+
+    @classmethod
+    def from_json(cls, text: str) -> Job:
+        """The job of :meth:`to_json`'s text.
+
+        Raises:
+            ValueError: not such a JSON object.
+        """
+        try:
+            doc: Any = json.loads(text)
+            return cls(TrainSpec(**doc["train"]), str(doc["out"]), bool(doc.get("sim", True)),
+                       int(doc.get("sim_workers", 1)))
+        except (ValueError, TypeError, KeyError) as exc:
+            raise ValueError(f"not a worker job ({type(exc).__name__}: {exc}); expected "
+                             "{\"train\": {...}, \"out\": DIR, \"sim\": BOOL}") from None
+
+    def argv(self) -> list[str]:
+        """The command that runs (or resumes) this job."""
+        return [sys.executable, "-m", ENTRY_POINT, self.to_json()]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the job given as the one argument; return the exit code (module docstring)."""
+    from clfd_bench.harness.run import Training, checked_run, failure
+    from clfd_bench.harness.validate import check_env_count
+    from clfd_bench.procs import die_with_parent_from_env
+
+    die_with_parent_from_env()  # started by a grid: end with it, even if it is SIGKILLed
+    if hasattr(sys.stdout, "reconfigure"):  # whole lines reach train.log as they are printed
+        sys.stdout.reconfigure(line_buffering=True)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if len(argv) != 1:
+        print(f"usage: python -m {ENTRY_POINT} JOB_JSON", file=sys.stderr)
+        return 2
+    try:
+        job = Job.from_json(argv[0])
+    except ValueError as exc:
+        print(f"{_PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        check_env_count("CLFD_THREADS")
+        training = Training(job.train.config())
+    except Exception as exc:
+        return failure(exc, job.out, _PROG)
+    return checked_run(training, job.out, sim=job.sim, sim_workers=job.sim_workers, log=print,
+                       prog=_PROG)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
