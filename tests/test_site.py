@@ -361,9 +361,9 @@ def test_directions_come_from_the_glossary():
     """Every score column of the site says which way is better, and the error-like ones
     (costs, failures, ranks) are lower-is-better."""
     from clfd_bench.metrics.glossary import GLOSSARY
-    from clfd_bench.site.build import _COLUMNS
+    from clfd_bench.leaderboard.report import COLUMNS
 
-    for key, *_ in _COLUMNS:
+    for key, *_ in COLUMNS:
         assert GLOSSARY[key].better in ("higher", "lower"), key
     lower = {k for k, t in GLOSSARY.items() if t.better == "lower"}
     assert {"train_time_s", "final_params", "exec_failures", "rank", "dtw"} <= lower
@@ -396,7 +396,7 @@ def synthetic_site(tmp_path_factory):
             "metrics": {key: {"median": values.get(key), "q1": values.get(key),
                               "q3": values.get(key),
                               "values": [values[key]] if key in values else []}
-                        for key, _ in COLUMNS}})
+                        for key, *_ in COLUMNS}})
     doc = {"schema_version": 1, "rows": rows, "paper": {"table": None, "reason": "made up"},
            "meta": {"dataset": "helloworld", "methods": list(_SYNTH), "profile": "smoke",
                     "seeds": [0], "orders": [0], "node": "t", "tasks": 2, "sim": True,
