@@ -16,7 +16,7 @@ and exits 1 if the table is out of date.
 
 Also (with no TASK, or TASK `writing`) regenerates the writing envs' per-task success
 tolerances `tasks/writing_tolerances.toml` from the HelloWorld and LASA demonstrations
-(`clfd_bench.envs.writing_derive`; the procedure's constants are in `tasks/writing.toml`
+(`clfd_bench.envs.writing.derive`; the procedure's constants are in `tasks/writing.toml`
 [tolerances]). Takes a few seconds.
 """
 
@@ -39,7 +39,7 @@ def make_writing_tolerances(tasks: list[str]) -> list[str]:
     """Writes `tasks/writing_tolerances.toml` when `tasks` is the default (every RoboTask) or
     names `writing`; returns `tasks` without `writing`."""
     from clfd_bench.envs.writing import load_writing_spec
-    from clfd_bench.envs.writing_derive import derive_tolerances, dumps_tolerances, tolerances_path
+    from clfd_bench.envs.writing.derive import derive_tolerances, dumps_tolerances, tolerances_path
 
     if tasks == list(TASKS) or "writing" in tasks:
         procedure = load_writing_spec().tolerance_procedure

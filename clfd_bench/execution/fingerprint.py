@@ -22,11 +22,11 @@ def _version(dist: str) -> str | None:
 
 #: Modules under ``clfd_bench/sim`` and ``clfd_bench/envs`` that no env runs, left out of the
 #: fingerprint: the build-time derivations of the task specs (``robotasks/derive.py``,
-#: ``robotasks/derive_common.py``, every ``robotasks/<task>/derive.py``, ``writing_derive.py``:
+#: ``robotasks/derive_common.py``, every ``robotasks/<task>/derive.py``, ``writing/derive.py``:
 #: what they produce, ``tasks/*.toml``, is hashed, so a change to them that changes no spec
 #: changes no execution), the tasks' own trajectory variants (``variants.py``: evaluation, not
 #: simulation) and the tasks' words (``doc.py``: the env's docstring and tasks/README.md).
-_NOT_RUN = ("derive.py", "derive_common.py", "writing_derive.py", "variants.py", "doc.py")
+_NOT_RUN = ("derive.py", "derive_common.py", "variants.py", "doc.py")
 
 
 def _runs(path: Path) -> bool:
