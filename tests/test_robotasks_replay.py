@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
-from clfd_bench.envs.base import load_task
+from clfd_bench.data import load_task
 from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 

@@ -46,7 +46,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from clfd_bench.envs.base import PandaEnv, load_task
+from clfd_bench.data import load_task
+from clfd_bench.envs.base import PandaEnv
 from clfd_bench.execution.perturb import FAMILIES, PerturbContext, family_names, perturb
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from clfd_bench.envs.base import load_task
+from clfd_bench.data import load_task
 from clfd_bench.envs.checks import Check, checks_json, failed_checks
 from clfd_bench.envs.writing.board import WritingBase, min_jerk
 from clfd_bench.envs.writing.judge import ink_strokes, judge_shape
