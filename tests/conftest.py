@@ -34,7 +34,7 @@ class BarePoseEnv(PandaEnv):
 @pytest.fixture(scope="session")
 def pose_env_cls():
     """`BarePoseEnv` with its start configuration (backward IK tracking of openbox demo 0)."""
-    from clfd_bench.envs.base import load_task
+    from clfd_bench.data import load_task
     from clfd_bench.sim.robot import robot_model
     from clfd_bench.sim.start_configs import backward_start_configs
 

@@ -9,11 +9,16 @@ import pytest
 import clfd_bench  # noqa: F401  (registers the envs)
 from clfd_bench.envs import registration
 from clfd_bench.envs.registration import env_id_for, env_specs, env_version
+from clfd_bench.envs.robotasks.registry import TASKS as ROBOTASKS
 
 
 def test_every_id_has_its_envs_version():
     specs = env_specs()
-    assert len(specs) == 9 + 7 + 1 + 26  # RoboTasks (4 + 5 of RoboTasks9), letters, text, LASA
+    # RoboTasks (the registry's: 4 + 5 of RoboTasks9 today), letters, text, LASA
+    assert len(specs) == len(ROBOTASKS) + 7 + 1 + 26
+    assert {t.name for t in ROBOTASKS} >= {"openbox", "bottle2shelf", "platestandingtolying",
+                                           "pouring", "wineglass", "pan2stove",
+                                           "obstaclerotate", "matfolding", "scoop"}
     for env_id in specs:
         name, version = env_id.split("/")[1].rsplit("-v", 1)
         assert int(version) == env_version(name)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
-from clfd_bench.envs.base import load_task
+from clfd_bench.data import load_task
 from clfd_bench.execution.perturb import PerturbContext, perturb
 from clfd_bench.execution.rollout import rollout
 
@@ -229,7 +229,7 @@ def test_a_mat_let_go_at_the_top_of_the_arc_is_not_folded_there(envs):
 
 def _bumped(env, demo, height):
     """Demo `demo` with its path raised by `height` (m) mid-way (start and end unchanged)."""
-    from clfd_bench.execution.task_variants import bumped
+    from clfd_bench.envs.robotasks.variants import bumped
 
     return bumped(height)(env.unwrapped.demo_trajectory(demo))
 
@@ -251,7 +251,7 @@ def test_a_scoop_pushed_down_to_the_bins_floor_touches_it(envs):
 def test_beans_tipped_out_of_the_scoop_before_the_end_fail(envs):
     """The demo, but over its last quarter the hand rolls 120 deg about its x axis (the tool's
     direction): the bowl turns over and the beans fall out."""
-    from clfd_bench.execution.task_variants import rolled_at_the_end
+    from clfd_bench.envs.robotasks.variants import rolled_at_the_end
 
     env = envs["scoop"]
     r = rollout(env, rolled_at_the_end(120.0)(env.unwrapped.demo_trajectory(3)), demo=3)

@@ -10,14 +10,12 @@ import pytest
 
 from clfd_bench.data import load_dataset
 from clfd_bench.envs.checks import check_from_json, failed_checks
-from clfd_bench.envs.robotask_scenes import (
-    MAT_FOLD_CHECKS,
-    mat_checks,
-    scoop_checks,
-    set_free_pose,
-)
-from clfd_bench.envs.robotask_specs import TASK_DATASETS, TASKS, dumps_task_spec, load_task_spec
 from clfd_bench.envs.robotasks import RoboTaskEnv
+from clfd_bench.envs.robotasks.common import set_free_pose
+from clfd_bench.envs.robotasks.matfolding.success import MAT_FOLD_CHECKS
+from clfd_bench.envs.robotasks.matfolding.success import checks as mat_checks
+from clfd_bench.envs.robotasks.scoop.success import checks as scoop_checks
+from clfd_bench.envs.robotasks.specs import TASK_DATASETS, TASKS, dumps_task_spec, load_task_spec
 from clfd_bench.sim.grasp import grip_capacity
 from clfd_bench.sim.robot import hand_pose, robot_model
 from clfd_bench.sim.scene_fit import fit_hinge, grasp_points, grip_slips, hinge_angles
@@ -71,12 +69,12 @@ def test_fit_hinge_recovers_a_known_axis_from_noisy_arcs():
 
 def test_openbox_spec_is_what_the_demos_derive(robotasks):
     """Hinge, grip slip bounds and opening angles are recomputed from the data (the geometric
-    part of `robotask_derive`, without its replays)."""
-    from clfd_bench.envs import robotask_derive as rd
+    part of its derivation, without its replays)."""
+    from clfd_bench.envs.robotasks.openbox import derive
 
     task = robotasks.tasks[robotasks.task_names.index("openbox")]
     spec = load_task_spec("openbox")
-    out = rd._derive_openbox(task, rd.DESIGN["openbox"], None)
+    out = derive.derive(task, derive.DESIGN, None)
     np.testing.assert_allclose(spec["scene"]["hinge_pos"], out["scene"]["hinge_pos"], atol=1e-6)
     np.testing.assert_allclose(spec["success"]["min_open_angle_deg"],
                                out["success"]["min_open_angle_deg"], atol=1e-6)

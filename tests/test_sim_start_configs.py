@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from clfd_bench.envs.base import load_task
+from clfd_bench.data import load_task
 from clfd_bench.sim.ik import quat_angle
 from clfd_bench.sim.robot import hand_pose, robot_model
 from clfd_bench.sim.start_configs import backward_start_configs, tracking_errors

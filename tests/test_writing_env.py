@@ -21,7 +21,7 @@ from clfd_bench.envs.writing import (
     load_writing_spec,
     min_jerk,
 )
-from clfd_bench.envs.writing_derive import demo_size
+from clfd_bench.envs.writing.derive import demo_size
 from clfd_bench.metrics.trajectory import coverage, hausdorff
 
 
@@ -244,7 +244,7 @@ def test_goal_tolerance_lies_between_what_must_pass_and_drift():
 
 def test_tolerances_equal_their_derivation():
     """tasks/writing_tolerances.toml is what the written procedure gives on the demos."""
-    from clfd_bench.envs.writing_derive import derive_tolerances
+    from clfd_bench.envs.writing.derive import derive_tolerances
 
     derived = derive_tolerances()
     assert set(derived["helloworld"]) == set("helloworld") - {" "}

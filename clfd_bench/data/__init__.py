@@ -17,6 +17,7 @@ from clfd_bench.data.loaders import (
     CorruptDatasetError,
     list_datasets,
     load_dataset,
+    load_task,
 )
 from clfd_bench.data.orders import TASK_ORDERS
 from clfd_bench.data.sources import ChecksumError, DatasetError, DatasetUnavailableError
@@ -34,4 +35,5 @@ __all__ = [
     "Task",
     "list_datasets",
     "load_dataset",
+    "load_task",
 ]

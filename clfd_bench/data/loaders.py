@@ -21,7 +21,8 @@ from clfd_bench.data.sources import (
 )
 from clfd_bench.data.types import Dataset, Task
 
-__all__ = ["DATASETS", "DatasetInfo", "CorruptDatasetError", "load_dataset", "list_datasets"]
+__all__ = ["DATASETS", "DatasetInfo", "CorruptDatasetError", "load_dataset", "load_task",
+           "list_datasets"]
 
 RECORDING_HZ = 60.0
 """HelloWorld and RoboTasks were recorded at 60 Hz (docs/data.md)."""
@@ -235,3 +236,16 @@ def load_dataset(name: str, order: int = 0) -> Dataset:
     tasks, source = info.loader(names)
     files = {Path(t.source).name: t.sha256 for t in tasks}
     return Dataset(name=name, order=order, tasks=tuple(tasks), source=source, files=files)
+
+
+def load_task(dataset: str, name: str) -> Task:
+    """Task `name` of `dataset` (e.g. ("robotasks", "openbox")) in its order 0.
+
+    Raises:
+        ValueError: the dataset has no such task (the message lists the valid names).
+    """
+    ds = load_dataset(dataset)
+    names = list(ds.task_names)
+    if name not in names:
+        raise ValueError(f"dataset {dataset!r} has no task {name!r}; valid: {names}")
+    return ds.tasks[names.index(name)]

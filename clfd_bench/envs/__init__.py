@@ -3,7 +3,8 @@
 `register_envs()` (called on `import clfd_bench`) registers every id; `env_id_for(dataset, task)`
 finds the env of a dataset task. The env classes live in `clfd_bench.envs.base` (`PandaEnv`, the
 shared loop), `clfd_bench.envs.writing` (HelloWorld, LASA) and `clfd_bench.envs.robotasks`
-(RoboTasks scenes); they are imported only when an env is made.
+(RoboTasks scenes, one folder per task, listed in `clfd_bench.envs.robotasks.registry`); they
+are imported only when an env is made.
 """
 
 from clfd_bench.envs.registration import (

@@ -118,18 +118,6 @@ _BLOWUP_WARNINGS = (
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
-def load_task(dataset: str, name: str):
-    """The data layer's `Task` `name` of `dataset` (e.g. ("robotasks", "openbox")); raises
-    ValueError listing the valid task names."""
-    from clfd_bench.data import load_dataset
-
-    ds = load_dataset(dataset)
-    names = list(ds.task_names)
-    if name not in names:
-        raise ValueError(f"dataset {dataset!r} has no task {name!r}; valid: {names}")
-    return ds.tasks[names.index(name)]
-
-
 def _resolve_limits(limits: str | MotionLimits | None) -> MotionLimits | None:
     if limits is None or isinstance(limits, MotionLimits):
         return limits
@@ -334,6 +322,8 @@ class PandaEnv(gym.Env):
         Default: from the data layer via (`dataset`, `task_name`)."""
         if not self.dataset or not self.task_name:
             raise NotImplementedError(f"{type(self).__name__} sets no dataset/task_name")
+        from clfd_bench.data import load_task
+
         return np.asarray(load_task(self.dataset, self.task_name).demos[demo], dtype=float)
 
     def settle_actions(self, last_action: np.ndarray, steps: int) -> np.ndarray:

@@ -5,15 +5,7 @@ writing envs `-v3` today):
 
 | id | task | entry point |
 |---|---|---|
-| `clfd/BoxOpening-v3` | RoboTasks `openbox` | `clfd_bench.envs.robotasks:RoboTaskEnv` |
-| `clfd/BottleShelving-v3` | RoboTasks `bottle2shelf` | same |
-| `clfd/PlateStacking-v3` | RoboTasks `platestandingtolying` | same |
-| `clfd/Pouring-v3` | RoboTasks `pouring` | same |
-| `clfd/WineGlass-v3` | RoboTasks9 `wineglass` | same |
-| `clfd/PanToStove-v3` | RoboTasks9 `pan2stove` | same |
-| `clfd/ObstacleRotate-v3` | RoboTasks9 `obstaclerotate` | same |
-| `clfd/MatFolding-v3` | RoboTasks9 `matfolding` | same |
-| `clfd/Scoop-v3` | RoboTasks9 `scoop` | same |
+| `clfd/<EnvName>-v3` | a RoboTasks(9) task (`robotasks.registry`) | `...robotasks:RoboTaskEnv` |
 | `clfd/HelloWorld-<letter>-v3` | letter h,e,l,o,w,r,d | `...writing:HelloWorldLetterEnv` |
 | `clfd/HelloWorld-v3` | a text (default "hello world") | `...writing:HelloWorldTextEnv` |
 | `clfd/LASA-<Shape>-v3` | the paper's 26 LASA shapes | `...writing:LasaShapeEnv` |
@@ -21,6 +13,9 @@ writing envs `-v3` today):
 LASA shape names map to ids unchanged (e.g. `clfd/LASA-JShape_2-v3`, `clfd/LASA-heee-v3`): every
 one of the paper's 26 names uses only letters, digits and `_`, which Gymnasium ids allow.
 `lasa_env_name` refuses names with other characters rather than guess a mapping.
+
+The RoboTasks ids come from `clfd_bench.envs.robotasks.registry.TASKS` (env name and dataset
+task of each: `clfd/BoxOpening-v3` runs `openbox`, ..., `clfd/Scoop-v3` runs `scoop`).
 
 `register_envs()` is idempotent and imports no env module (entry points are strings), so
 registering is cheap; a missing entry point fails when that id is made.
@@ -32,20 +27,12 @@ import re
 
 import gymnasium as gym
 
+from clfd_bench.envs.robotasks.registry import TASKS as ROBOTASKS
+
 NAMESPACE = "clfd"
 
-#: RoboTasks env name -> dataset task name.
-ROBOTASKS_ENVS: dict[str, str] = {
-    "BoxOpening": "openbox",
-    "BottleShelving": "bottle2shelf",
-    "PlateStacking": "platestandingtolying",
-    "Pouring": "pouring",
-    "WineGlass": "wineglass",
-    "PanToStove": "pan2stove",
-    "ObstacleRotate": "obstaclerotate",
-    "MatFolding": "matfolding",
-    "Scoop": "scoop",
-}
+#: RoboTasks env name -> dataset task name (`clfd_bench.envs.robotasks.registry.TASKS`).
+ROBOTASKS_ENVS: dict[str, str] = {t.env_name: t.name for t in ROBOTASKS}
 ROBOTASKS_ENTRY_POINT = "clfd_bench.envs.robotasks:RoboTaskEnv"
 HELLOWORLD_LETTERS: tuple[str, ...] = ("h", "e", "l", "o", "w", "r", "d")
 #: The paper's 26 LASA shapes (alphabetical, case-insensitive, as the data layer orders them).

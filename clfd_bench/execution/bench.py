@@ -13,21 +13,20 @@ import mujoco
 import numpy as np
 
 from clfd_bench.envs.base import PandaEnv
+from clfd_bench.envs.registration import env_id_for
+from clfd_bench.envs.robotasks.registry import TASKS as ROBOTASKS
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 
-#: The envs `clfd-bench bench sim` measures by default: one per kind of scene.
-DEFAULT_ENVS = (
-    "clfd/HelloWorld-h-v3", "clfd/LASA-Angle-v3", "clfd/BoxOpening-v3",
-    "clfd/BottleShelving-v3", "clfd/PlateStacking-v3", "clfd/Pouring-v3",
-    "clfd/WineGlass-v3", "clfd/PanToStove-v3", "clfd/ObstacleRotate-v3",
-    "clfd/MatFolding-v3", "clfd/Scoop-v3",
-)
+#: The envs `clfd-bench bench sim` measures by default: one per kind of scene (a letter, a LASA
+#: shape, every RoboTasks task of `clfd_bench.envs.robotasks.registry`).
+DEFAULT_ENVS = ("clfd/HelloWorld-h-v3", "clfd/LASA-Angle-v3",
+                *(env_id_for(t.dataset, t.name) for t in ROBOTASKS))
 #: Speed targets (x real time) from the issue: 50x, 30x for the scenes of many bodies in
-#: contact (Pouring's and Scoop's beans; MatFolding's 13-body mat, docs/design/robotasks9
-#: section 3).
+#: contact (the registry's `contact_heavy` tasks: Pouring's and Scoop's beans; MatFolding's
+#: 13-body mat, docs/design/robotasks9 section 3).
 TARGET_X = 50.0
 TARGET_X_POURING = 30.0
-_CONTACT_HEAVY = ("Pouring", "MatFolding", "Scoop")
+_CONTACT_HEAVY = tuple(t.env_name for t in ROBOTASKS if t.contact_heavy)
 
 
 def target_for(env_id: str) -> float:

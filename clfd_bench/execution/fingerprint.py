@@ -20,16 +20,33 @@ def _version(dist: str) -> str | None:
         return None
 
 
+#: Modules under ``clfd_bench/sim`` and ``clfd_bench/envs`` that no env runs, left out of the
+#: fingerprint: the build-time derivations of the task specs (``robotasks/derive.py``,
+#: ``robotasks/derive_common.py``, every ``robotasks/<task>/derive.py``, ``writing/derive.py``:
+#: what they produce, ``tasks/*.toml``, is hashed, so a change to them that changes no spec
+#: changes no execution), the tasks' own trajectory variants (``variants.py``: evaluation, not
+#: simulation) and the tasks' words (``doc.py``: the env's docstring and tasks/README.md).
+_NOT_RUN = ("derive.py", "derive_common.py", "variants.py", "doc.py")
+
+
+def _runs(path: Path) -> bool:
+    """Whether an env runs the module at `path` (see `_NOT_RUN`)."""
+    return path.name not in _NOT_RUN
+
+
 def _sim_files() -> Iterator[tuple[str, Path]]:
     """Files that define the simulator: its code, the task scenes and specs, robot assets, as
-    ``(name, path)``. The name is the same in a source checkout and in an installed wheel
-    (``sim/robot.py``, ``tasks/openbox.xml``), so a run executed in one is current in the other
-    (the wheel keeps ``tasks/`` under ``clfd_bench/_share/``)."""
+    ``(name, path)``. The code is every module of ``clfd_bench/sim`` and ``clfd_bench/envs``,
+    sub-folders included (each RoboTasks task has its own), that an env runs (`_NOT_RUN` lists
+    those it does not). The name is the same in a source checkout and in an installed wheel
+    (``sim/robot.py``, ``envs/robotasks/openbox/scene.py``, ``tasks/openbox.xml``), so a run
+    executed in one is current in the other (the wheel keeps ``tasks/`` under
+    ``clfd_bench/_share/``)."""
     from clfd_bench.resources import resource_root
 
     pkg = Path(__file__).resolve().parent.parent
     for folder in (pkg / "sim", pkg / "envs"):
-        for path in sorted(folder.glob("*.py")):
+        for path in sorted(p for p in folder.rglob("*.py") if _runs(p)):
             yield path.relative_to(pkg).as_posix(), path
     # what runs after the trajectory decides success too
     yield "execution/rollout.py", pkg / "execution" / "rollout.py"
@@ -41,10 +58,10 @@ def _sim_files() -> Iterator[tuple[str, Path]]:
 
 @functools.lru_cache(maxsize=1)
 def sim_fingerprint() -> str:
-    """sha256 (hex, first 16 digits) of the simulator: the contents of ``clfd_bench/sim``,
-    ``clfd_bench/envs``, ``clfd_bench/execution/rollout.py``, ``tasks/`` and ``assets/`` and
-    the mujoco, mink, gymnasium versions. Execution results are reused only under the same
-    fingerprint."""
+    """sha256 (hex, first 16 digits) of the simulator: the modules of ``clfd_bench/sim`` and
+    ``clfd_bench/envs`` an env runs (`_sim_files`), ``clfd_bench/execution/rollout.py``,
+    ``tasks/`` and ``assets/`` and the mujoco, mink, gymnasium versions. Execution results are
+    reused only under the same fingerprint."""
     digest = hashlib.sha256()
     for dist in ("mujoco", "mink", "gymnasium"):
         digest.update(f"{dist}={_version(dist)}\n".encode())

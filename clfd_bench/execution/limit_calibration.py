@@ -190,39 +190,19 @@ class _RecordingCollisionMonitor(CollisionMonitor):
         return None
 
 
+def _added_after_calibration() -> dict[str, str]:
+    from clfd_bench.envs.robotasks.registry import TASKS, task_module
+
+    notes = ((t.env_name, task_module(t.name, "doc").CALIBRATION) for t in TASKS)
+    return {name: note for name, note in notes if note}
+
+
 #: Envs registered after the bounds of `clfd_bench.sim.limits` were measured: not part of the
 #: full measurement (so that it still reproduces the constants), each checked against the
 #: bounds with `eval/measure_limits.py --envs ID` instead (its worst values as a fraction of
-#: each bound). Name -> what that check found.
-ADDED_AFTER_CALIBRATION: dict[str, str] = {
-    "WineGlass": "2026-12-04: 27 replays (demo, slower, faster) all successful; worst hand "
-                 "position error 9.8 mm = 0.81 x TRACKING_POSITION (demo 8 1.5x faster, joint 6 "
-                 "at its 12 Nm torque limit while the glass is turned), rotation 0.30 x; no "
-                 "robot-scene contact; filtered rotation / joint accelerations 0.58 x / 0.23 x "
-                 "at the filters' 8 Hz / 3 Hz (stricter ones are in use). With it in the "
-                 "measurement TRACKING_POSITION would be 19.5 mm for every env.",
-    "PanToStove": "2026-12-04: 27 replays all successful; worst hand position error 1.8 mm, "
-                  "rotation 0.0225 rad (0.44 x TRACKING_ROTATION; demo 1 1.5x faster); no "
-                  "robot-scene contact; filtered rotation / joint accelerations 0.59 x at 5 Hz "
-                  "/ 0.48 x at 3 Hz: every value under those of the measurement, so adding it "
-                  "would leave the constants as they are.",
-    "ObstacleRotate": "2026-12-04: 27 replays all successful; worst hand position error "
-                      "7.4 mm = 0.61 x TRACKING_POSITION (demo 7 1.5x faster), rotation "
-                      "0.0238 rad (0.47 x); no robot-scene contact; filtered rotation / joint "
-                      "accelerations 0.64 x at 6 Hz / 0.37 x at 3 Hz. With it in the "
-                      "measurement TRACKING_POSITION would be 14.7 mm.",
-    "MatFolding": "2026-12-04: 27 replays all successful; worst hand position error 2.5 mm "
-                  "(0.21 x TRACKING_POSITION; demo 3), rotation 0.0085 rad (0.17 x; demo 2 "
-                  "1.5x faster); no robot-scene contact; filtered rotation / joint peaks "
-                  "0.31 x at 5 Hz / 0.36 x at 2.5 Hz (0.40 x / 0.37 x at 6 Hz / 3 Hz): every "
-                  "value under those of the measurement, so adding it would leave the "
-                  "constants as they are.",
-    "Scoop": "2026-12-04: 27 replays all successful; worst hand position error 0.6 mm (0.05 x "
-             "TRACKING_POSITION; demo 0 1.5x faster), rotation 0.0090 rad (0.18 x; demo 2 1.5x "
-             "faster); no robot-scene contact; filtered rotation / joint peaks 0.48 x at 8 Hz "
-             "/ 0.31 x at 3 Hz: every value under those of the measurement, so adding it would "
-             "leave the constants as they are.",
-}
+#: each bound). Name -> what that check found (the task's `doc.CALIBRATION`,
+#: `clfd_bench.envs.robotasks.registry`).
+ADDED_AFTER_CALIBRATION: dict[str, str] = _added_after_calibration()
 
 
 def calibration_env_ids() -> list[str]:

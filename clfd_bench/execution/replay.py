@@ -29,7 +29,7 @@ The same holds for where an execution ends. Some scene bounds are the demos' own
 RoboTasks prop may be let go as far from demo j's release point as another demo lets it go
 (`release_offset`), the cup emptied as far from demo j's pour point as another demo empties it
 (`pour_offset`), the lid opened as far as the least-opened demo (`lid_opened`)
-(`clfd_bench.envs.robotask_derive`). A variant of a family that is wrong only by where it ends
+(`clfd_bench.envs.robotasks.derive`). A variant of a family that is wrong only by where it ends
 (`END_FAMILIES`: drift) whose rollout passes every such check (`SPREAD_CHECKS`) ends within the
 demos' spread: it is not a wrong trajectory and is counted "n/a" (`within_demo_spread`). Where
 it ends beyond that spread, the check it passes nowhere else fails it, and it counts.
@@ -46,8 +46,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from clfd_bench.envs.base import PandaEnv, load_task
-from clfd_bench.envs.robotask_scenes import MAT_FOLD_CHECKS
+from clfd_bench.data import load_task
+from clfd_bench.envs.base import PandaEnv
 from clfd_bench.execution.perturb import FAMILIES, PerturbContext, family_names, perturb
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.io import json_safe
@@ -71,32 +71,25 @@ END_FAMILIES = ("drift",)
 SPREAD_CHECKS = ("release_offset", "pour_offset", "lid_opened")
 
 
-def _checks_passed(info: Mapping[str, Any], names: Sequence[str]) -> bool:
-    """Whether every check named in `names` is in `info["checks"]` and passed."""
-    passed = {c["name"]: bool(c["passed"]) for c in info.get("checks") or ()}
-    return all(passed.get(n, False) for n in names)
+def _valid_alternatives() -> dict[tuple[str, str], tuple[Callable[[Mapping[str, Any]], bool],
+                                                       str]]:
+    from clfd_bench.envs.robotasks.registry import TASKS, task_module
+
+    out = {}
+    for task in TASKS:
+        own = task_module(task.name, "variants", optional=True)
+        for family, rule in getattr(own, "VALID_ALTERNATIVES", {}).items():
+            out[(task.name, family)] = rule
+    return out
 
 
 #: (task, family) -> (outcome, reason): a variant of `family` on `task` is no wrong trajectory
 #: (n/a) when `outcome(final info)` holds. Team decisions of 2026-12-05: judge the outcome an
-#: observer sees, not the path, where that outcome is the task.
-VALID_ALTERNATIVES: dict[tuple[str, str], tuple[Callable[[Mapping[str, Any]], bool], str]] = {
-    ("matfolding", "shortcut"): (
-        lambda info: _checks_passed(info, MAT_FOLD_CHECKS),
-        "a straight pull from demo j's start to its end pose that folds the mat in half (the "
-        "far half flat, the strips turned over onto it) is another way of folding it, as a "
-        "mirrored Pouring is another way of pouring: a mat lifted by one edge slides towards "
-        "the hand whatever the path, so the criterion judges the mat relative to itself, and "
-        "a folded mat is the outcome an observer signs. A shortcut that does not fold it (the "
-        "edge slips out of the fingers) is still counted, and fails."),
-    ("scoop", "drift"): (
-        lambda info: True,
-        "nothing in the scene marks where demo j ends (no container: a scoopful held level out "
-        "of the bin is the task done wherever the hand holds it), so no check judges the end "
-        "point; a path offset by up to 5 cm that still dips into the bin and lifts a level "
-        "scoopful out is the task done, and one that touches the bin or loses its beans fails "
-        "those checks, not for the offset. The family tests nothing this task asks."),
-}
+#: observer sees, not the path, where that outcome is the task. Each task states its own in its
+#: `variants.py` (`VALID_ALTERNATIVES`: family -> (outcome, reason);
+#: `clfd_bench.envs.robotasks.registry`).
+VALID_ALTERNATIVES: dict[tuple[str, str], tuple[Callable[[Mapping[str, Any]], bool], str]] = (
+    _valid_alternatives())
 
 
 @dataclasses.dataclass

@@ -119,7 +119,7 @@ MAX_REACH = 0.855
 #: rad (BoxOpening), 0.5 mm / 0.010 rad (BottleShelving), 6.0 mm / 0.011 rad (PlateStacking),
 #: 2.0 mm / 0.026 rad (Pouring), under 0.5 mm in the writing envs. (With v1's 4 ms physics
 #: steps the servos, at their torque limits while a held prop swings, lagged by up to 24 mm:
-#: an artefact of the step, see `clfd_bench.envs.robotask_derive.DESIGN`.)
+#: an artefact of the step, see `clfd_bench.envs.robotasks.derive_common.TASK_DEFAULTS`.)
 #: -> 2 × max: 12.0 mm, 0.051 rad (floors 10 mm, 0.05 rad: the servos' lag of a smooth motion
 #: is ~1 mm, so a centimetre means a hand held back or pushed away).
 TRACKING_FACTOR = 2.0

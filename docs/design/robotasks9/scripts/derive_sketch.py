@@ -1,5 +1,5 @@
 """Sketch of the scene derivations proposed in memo.md, in the style of
-clfd_bench.envs.robotask_derive (lowest point of the held prop - 1.5 cm, etc.), with simple
+clfd_bench.envs.robotasks.derive (lowest point of the held prop - 1.5 cm, etc.), with simple
 geometric prop models (design assumptions, stated below). Run from the repo root:
   nice -n 19 python docs/design/robotasks9/scripts/derive_sketch.py \
       > results/robotasks9/derive_sketch.txt"""
