@@ -360,8 +360,8 @@ def test_best_marks_rule():
 def test_directions_come_from_the_glossary():
     """Every score column of the site says which way is better, and the error-like ones
     (costs, failures, ranks) are lower-is-better."""
-    from clfd_bench.metrics.glossary import GLOSSARY
     from clfd_bench.leaderboard.report import COLUMNS
+    from clfd_bench.metrics.glossary import GLOSSARY
 
     for key, *_ in COLUMNS:
         assert GLOSSARY[key].better in ("higher", "lower"), key
