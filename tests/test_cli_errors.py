@@ -15,40 +15,46 @@ _CONSOLE = "import sys; from clfd_bench.cli.main import main; sys.exit(main())"
 SMOKE = ["train", "--method", "sg", "--dataset", "helloworld", "--profile", "smoke", "--no-sim"]
 
 
-def _run(args: list[str], **kw) -> subprocess.CompletedProcess:
-    return subprocess.run(CLI + args, capture_output=True, text=True, timeout=600, **kw)
+def _main(args: list[str], capsys) -> tuple[int, str]:
+    """``clfd-bench ARGS`` in this process (no interpreter start-up): exit code and stderr."""
+    from clfd_bench.cli.main import main
+
+    capsys.readouterr()
+    code = main(args)
+    return code, capsys.readouterr().err
 
 
-def _one_error_line(res: subprocess.CompletedProcess, command: str) -> str:
-    assert res.returncode == 2, (res.returncode, res.stderr)
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"clfd-bench {command}: error: "), res.stderr
+def _one_error_line(code: int, err: str, command: str) -> str:
+    assert code == 2, (code, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"clfd-bench {command}: error: "), err
     return lines[0]
 
 
-def test_a_truncated_checkpoint_is_one_line_and_names_the_fix(tmp_path):
+def test_a_truncated_checkpoint_is_one_line_and_names_the_fix(tmp_path, capsys):
     out = tmp_path / "run"
-    assert _run(SMOKE + ["--tasks", "1", "--out", str(out)]).returncode == 0
+    assert _main(SMOKE + ["--tasks", "1", "--quiet", "--out", str(out)], capsys)[0] == 0
     ckpt = out / "checkpoint.pt"
     ckpt.write_bytes(ckpt.read_bytes()[:1000])
-    line = _one_error_line(_run(SMOKE + ["--tasks", "2", "--out", str(out)]), "train")
+    line = _one_error_line(*_main(SMOKE + ["--tasks", "2", "--out", str(out)], capsys), "train")
     assert str(ckpt) in line and "delete it" in line
 
 
-def test_a_folder_that_is_not_a_run_is_not_written_into(tmp_path):
+def test_a_folder_that_is_not_a_run_is_not_written_into(tmp_path, capsys):
     folder = tmp_path / "docs"
     folder.mkdir()
     (folder / "notes.md").write_text("mine\n")
-    line = _one_error_line(_run(SMOKE + ["--tasks", "1", "--out", str(folder)]), "train")
+    line = _one_error_line(*_main(SMOKE + ["--tasks", "1", "--out", str(folder)], capsys),
+                           "train")
     assert "'notes.md'" in line and "not a run directory" in line
     assert sorted(p.name for p in folder.iterdir()) == ["notes.md"]
 
 
-def test_replay_names_the_closest_env_and_takes_ids_without_namespace():
-    line = _one_error_line(_run(["replay", "--env", "PlateStaking-v3"]), "replay")
+def test_replay_names_the_closest_env_and_takes_ids_without_namespace(capsys):
+    line = _one_error_line(*_main(["replay", "--env", "PlateStaking-v3"], capsys), "replay")
     assert "did you mean 'PlateStacking-v3'" in line
-    line = _one_error_line(_run(["replay", "--env", "PlateStacking-v3", "--perturb", "revers"]),
-                           "replay")
+    line = _one_error_line(
+        *_main(["replay", "--env", "PlateStacking-v3", "--perturb", "revers"], capsys), "replay")
     assert "did you mean 'reverse'" in line  # the env id itself was accepted
 
 
