@@ -105,3 +105,18 @@ def test_a_tampered_archive_restores_nothing(out, keep_mod, tmp_path):
     with pytest.raises(PretrainedError, match="git checkout"):
         keep_mod.restore(keep, fresh, refresh=_no_refresh)
     assert not (fresh / key).exists()
+
+
+def test_every_kept_run_of_the_repository_is_in_it():
+    """Each run docs/studies/full-runs/MANIFEST.json names has its archive in the checkout,
+    with the recorded sha256 (a fresh clone restores them all; a .gitignore rule once kept
+    the archives out of the repository while the manifest named them)."""
+    import hashlib
+
+    keep = ROOT / "docs" / "studies" / "full-runs"
+    manifest = json.loads((keep / "MANIFEST.json").read_text(encoding="utf-8"))
+    assert manifest, "no kept run named"
+    for key, entry in manifest.items():
+        archive = keep / f"{key}.tar.xz"
+        assert archive.is_file(), f"{archive} is named in MANIFEST.json but not in the checkout"
+        assert hashlib.sha256(archive.read_bytes()).hexdigest() == entry["sha256"], key
