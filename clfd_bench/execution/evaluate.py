@@ -23,7 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from clfd_bench.envs.checks import check_from_json
+from clfd_bench.envs.checks import Check, check_from_json
 from clfd_bench.execution.cache import nonfinite_summary, prediction_key
 from clfd_bench.execution.env_pool import get_env
 from clfd_bench.execution.execute import ExecResult, checks_reason, execute
@@ -119,23 +119,20 @@ class RolloutObserver(Protocol):
                     demonstration: np.ndarray | None = None) -> None: ...
 
 
-def _reason(hit: dict[str, Any]) -> str | None:
-    """A cached execution's failure reason; a task failure decided at the end says it from its
-    checks in today's words (:func:`~clfd_bench.execution.execute.checks_reason`), so a cache
-    written before the wording changed reads as a new one."""
-    if hit.get("failure_kind") == "task" and not hit.get("stopped_early") and hit.get("checks"):
-        named = checks_reason([check_from_json(c) for c in hit["checks"]])
-        if named is not None:
-            return named
-    return hit["failure_reason"]
-
-
-def _failed_checks(hit: dict[str, Any]) -> list[str]:
-    """Names of the success checks a cached execution failed (empty unless it is a ``task``
-    failure of an env that reports its checks)."""
+def _task_checks(hit: dict[str, Any]) -> list[Check]:
+    """The success checks a cached ``task`` failure stored (empty for any other outcome, or an
+    env that reports none)."""
     if hit.get("failure_kind") != "task":
         return []
-    return [c["name"] for c in hit.get("checks") or () if not check_from_json(c).passed]
+    return [check_from_json(c) for c in hit.get("checks") or ()]
+
+
+def _reason(hit: dict[str, Any], checks: list[Check]) -> str | None:
+    """A cached execution's failure reason; a task failure decided at the end says it from its
+    ``checks`` in today's words (:func:`~clfd_bench.execution.execute.checks_reason`), so a
+    cache written before the wording changed reads as a new one."""
+    named = None if hit.get("stopped_early") else checks_reason(checks)
+    return named if named is not None else hit["failure_reason"]
 
 
 def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *,
@@ -242,11 +239,12 @@ def evaluate_run(run_dir: str | Path, observer: RolloutObserver | None = None, *
     checks: list[list[list[list[str]] | None]] = [[None] * m for _ in range(m)]
     for i, j, _, key, _ in points:
         hit = cache[key]
+        stored = _task_checks(hit)
         for table, value in ((success, bool(hit["success"])),
                              (track, hit["mean_tracking_error"]),
-                             (reasons, _reason(hit)),
+                             (reasons, _reason(hit, stored)),
                              (kinds, hit["failure_kind"]),
-                             (checks, _failed_checks(hit))):
+                             (checks, [c.name for c in stored if not c.passed])):
             if table[i][j] is None:
                 table[i][j] = []
             table[i][j].append(value)
