@@ -3,9 +3,12 @@ provenance block (env ids and versions, library versions) results files record."
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import importlib.metadata
+import io
+import tokenize
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -56,17 +59,61 @@ def _sim_files() -> Iterator[tuple[str, Path]]:
             yield f"{name}/{path.relative_to(root).as_posix()}", path
 
 
+def _not_run_spans(source: str) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The comments and docstrings (module, class, function) of `source`, as ((line, column),
+    (end line, end column)) spans, lines from 1."""
+    lines = source.splitlines()
+
+    def column(line: int, byte_offset: int) -> int:  # ast counts UTF-8 bytes, tokenize characters
+        return len(lines[line - 1].encode()[:byte_offset].decode())
+
+    spans = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            first = node.body[0] if node.body else None
+            if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                    and isinstance(first.value.value, str)):
+                spans.append(((first.lineno, column(first.lineno, first.col_offset)),
+                              (first.end_lineno, column(first.end_lineno, first.end_col_offset))))
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type == tokenize.COMMENT:
+            spans.append((tok.start, tok.end))
+    return spans
+
+
+def _hashed_bytes(path: Path) -> bytes:
+    """What of the file at `path` the fingerprint hashes. For Python code, what it runs: the
+    source without its comments, docstrings, trailing spaces and blank lines, so that a
+    reworded comment leaves every execution result current (the execution layer's cache is
+    reused only under the same fingerprint). The same on every Python version: only spans
+    are cut out, nothing is re-rendered. Anything else, and a ``.py`` file that does not
+    parse, whole."""
+    data = path.read_bytes()
+    if path.suffix != ".py":
+        return data
+    try:
+        source = data.decode()
+        lines = source.splitlines()
+        for (line, col), (end_line, end_col) in sorted(_not_run_spans(source), reverse=True):
+            head, tail = lines[line - 1][:col], lines[end_line - 1][end_col:]
+            lines[line - 1:end_line] = [head + tail]
+    except (SyntaxError, UnicodeDecodeError, tokenize.TokenError):
+        return data
+    return "\n".join(kept for kept in (t.rstrip() for t in lines) if kept).encode()
+
+
 @functools.lru_cache(maxsize=1)
 def sim_fingerprint() -> str:
     """sha256 (hex, first 16 digits) of the simulator: the modules of ``clfd_bench/sim`` and
     ``clfd_bench/envs`` an env runs (`_sim_files`), ``clfd_bench/execution/rollout.py``,
-    ``tasks/`` and ``assets/`` and the mujoco, mink, gymnasium versions. Execution results are
+    ``tasks/`` and ``assets/`` and the mujoco, mink, gymnasium versions; of the code, what
+    runs (`_hashed_bytes`: comments and docstrings are left out). Execution results are
     reused only under the same fingerprint."""
     digest = hashlib.sha256()
     for dist in ("mujoco", "mink", "gymnasium"):
         digest.update(f"{dist}={_version(dist)}\n".encode())
     for rel, path in _sim_files():
-        digest.update(rel.encode() + b"\0" + path.read_bytes() + b"\0")
+        digest.update(rel.encode() + b"\0" + _hashed_bytes(path) + b"\0")
     return digest.hexdigest()[:16]
 
 

@@ -1,7 +1,7 @@
 """Start joint configurations from which each demonstration can be tracked.
 
 From the `home` keyframe, IK tracking of some RoboTasks demos (openbox) drifts into a branch that
-ends far off. All demos of a task end at one common pose, so (see DESIGN.md, "Start
+ends far off. All demos of a task end at one common pose, so (see docs/data.md, "Frames and start
 configurations"): solve one goal configuration for that end pose, track each demo *backward*
 from it, and use where the backward tracking ends as that demo's start configuration. Tracking
 forward from there follows the demo.
@@ -14,7 +14,7 @@ import numpy as np
 from clfd_bench.sim.ik import PoseTracker
 from clfd_bench.sim.robot import HOME_QPOS
 
-#: Tracker settings of the offline procedure (DESIGN.md: 8 iterations per sample, dt 0.01).
+#: Tracker settings of the offline procedure (docs/data.md: 8 iterations per sample, dt 0.01).
 OFFLINE_ITERATIONS = 8
 OFFLINE_DT = 0.01
 OFFLINE_POSTURE_COST = 1e-3
