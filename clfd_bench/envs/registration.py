@@ -27,6 +27,7 @@ import re
 
 import gymnasium as gym
 
+from clfd_bench.data.orders import TASK_ORDERS
 from clfd_bench.envs.robotasks.registry import TASKS as ROBOTASKS
 
 NAMESPACE = "clfd"
@@ -34,14 +35,10 @@ NAMESPACE = "clfd"
 #: RoboTasks env name -> dataset task name (`clfd_bench.envs.robotasks.registry.TASKS`).
 ROBOTASKS_ENVS: dict[str, str] = {t.env_name: t.name for t in ROBOTASKS}
 ROBOTASKS_ENTRY_POINT = "clfd_bench.envs.robotasks:RoboTaskEnv"
-HELLOWORLD_LETTERS: tuple[str, ...] = ("h", "e", "l", "o", "w", "r", "d")
-#: The paper's 26 LASA shapes (alphabetical, case-insensitive, as the data layer orders them).
-LASA_SHAPES: tuple[str, ...] = (
-    "Angle", "BendedLine", "CShape", "DoubleBendedLine", "GShape", "heee", "JShape",
-    "JShape_2", "Khamesh", "Leaf_1", "Leaf_2", "Line", "LShape", "NShape", "PShape", "RShape",
-    "Saeghe", "Sharpc", "Sine", "Snake", "Spoon", "Sshape", "Trapezoid", "Worm", "WShape",
-    "Zshape",
-)
+#: The seven letters, in the paper's order 0 (the data layer's `TASK_ORDERS`, written once).
+HELLOWORLD_LETTERS: tuple[str, ...] = TASK_ORDERS["helloworld"][0]
+#: The paper's 26 LASA shapes, alphabetical, case-insensitive (as the data layer orders them).
+LASA_SHAPES: tuple[str, ...] = tuple(sorted(TASK_ORDERS["lasa"][0], key=str.lower))
 WRITING_MODULE = "clfd_bench.envs.writing"
 #: Version of each family of envs; a behaviour change bumps the version of what it changes
 #: (and adds a line to the env class's Version History). Gymnasium then refuses the old id
