@@ -10,6 +10,8 @@
 * :mod:`~clfd_bench.harness.worker` -- a grid's worker process (``python -m``).
 * :mod:`~clfd_bench.harness.predict` -- :func:`predict` from a run directory.
 * :mod:`~clfd_bench.harness.external` -- :func:`score_predictions` made elsewhere.
+* :mod:`~clfd_bench.harness.external_format` -- reading and checking predictions made
+  elsewhere (their format).
 
 Names are imported lazily so that importing one module does not pull in the others.
 """
