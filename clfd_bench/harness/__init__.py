@@ -1,6 +1,9 @@
 """The harness: configs, the one training loop, the sequential protocol, results, checkpoints.
 
-* :mod:`~clfd_bench.harness.config` -- :class:`RunConfig` from ``baselines/<method>.toml``.
+* :mod:`~clfd_bench.harness.config` -- :func:`resolve_config`: a :class:`RunConfig` from
+  ``baselines/<method>.toml`` and ``--set`` overrides.
+* :mod:`~clfd_bench.harness.run_config` -- :class:`RunConfig` and its run-level values.
+* :mod:`~clfd_bench.harness.baselines` -- finding and reading the hyperparameter files.
 * :mod:`~clfd_bench.harness.loop` -- :func:`train_task`, the only training loop.
 * :mod:`~clfd_bench.harness.learner` -- data <-> NODE space (normalisation, tangent map).
 * :mod:`~clfd_bench.harness.protocol` -- :func:`run_training`, the sequential protocol.
@@ -36,7 +39,7 @@ __all__ = [
 
 _WHERE = {
     "ConfigError": "config",
-    "RunConfig": "config",
+    "RunConfig": "run_config",
     "resolve_config": "config",
     "train_task": "loop",
     "Learner": "learner",

@@ -49,7 +49,8 @@ _LABEL = re.compile(r"[A-Za-z0-9_.+-]+")
 def _load_dataset(name: str, order: int, node: str) -> Dataset:
     """The dataset in ``order``, after the run-level checks every command shares."""
     from clfd_bench.data import DATASETS, load_dataset
-    from clfd_bench.harness.config import ConfigError, check_run_values
+    from clfd_bench.harness.config import ConfigError
+    from clfd_bench.harness.run_config import check_run_values
 
     if name not in DATASETS:
         raise PredictionsError(f"--dataset {name!r}: unknown dataset; valid: "

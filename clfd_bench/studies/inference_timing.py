@@ -44,10 +44,11 @@ from torch import Tensor
 
 from clfd_bench.data import load_dataset
 from clfd_bench.data.types import Task
-from clfd_bench.harness.config import RunConfig, resolve_config
+from clfd_bench.harness.config import resolve_config
 from clfd_bench.harness.learner import Learner, PartLearner
 from clfd_bench.harness.loop import solver_spec
 from clfd_bench.harness.protocol import load_learner
+from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.io import atomic_write_json, atomic_write_text
 from clfd_bench.learning.mlp import num_weights
 from clfd_bench.learning.node import VectorField
