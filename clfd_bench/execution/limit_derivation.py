@@ -29,7 +29,6 @@ __all__ = ["RTOL", "Calibration", "Comparison", "Derived", "Extreme", "RolloutMe
 #: Relative tolerance of `compare` (measured vs the constants of `sim.limits`).
 RTOL = 0.02
 _ROWS = ("velocity", "acceleration", "jerk")
-_COLUMNS = ("cartesian", "rotation", *ARM_JOINTS)
 
 
 # --------------------------------------------------------------------------- one rollout
