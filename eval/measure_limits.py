@@ -8,8 +8,8 @@ and 1.5× faster, is replayed with every bound infinite; the script prints the m
 values (tracking error, robot-scene contact force, raw and filtered command peaks over the
 cutoff grids) next to the constants of `clfd_bench.sim.limits` and exits 1 when the full
 measurement does not reproduce them (relative tolerance 2 %; cutoffs exactly). The procedure is
-`clfd_bench.execution.limit_calibration`. ~20 min on 2 cores; a tqdm bar shows the progress
-unless CLFD_NO_PROGRESS=1.
+`clfd_bench.execution.limit_calibration` (what it derives: `limit_derivation`). ~20 min on 2
+cores; a tqdm bar shows the progress unless CLFD_NO_PROGRESS=1.
 """
 
 from __future__ import annotations
@@ -20,14 +20,8 @@ import math
 import sys
 import time
 
-from clfd_bench.execution.limit_calibration import (
-    FAMILIES,
-    RTOL,
-    Calibration,
-    Extreme,
-    compare,
-    measure,
-)
+from clfd_bench.execution.limit_calibration import FAMILIES, measure
+from clfd_bench.execution.limit_derivation import RTOL, Calibration, Extreme, compare
 from clfd_bench.io import atomic_write_json
 
 

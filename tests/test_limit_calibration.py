@@ -1,6 +1,6 @@
-"""The measurement behind `clfd_bench.sim.limits` (`clfd_bench.execution.limit_calibration`):
-a quick run on demo 0 of two small envs, hand-computed filtered peaks of synthetic command
-streams and the cutoff choice they imply, and an injected jump of the command."""
+"""The measurement behind `clfd_bench.sim.limits` (`clfd_bench.execution.limit_calibration`,
+`limit_derivation`): a quick run on demo 0 of two small envs, hand-computed filtered peaks of
+synthetic command streams and the cutoff choice they imply, and an injected jump of the command."""
 
 from __future__ import annotations
 
@@ -11,18 +11,20 @@ import pytest
 
 import clfd_bench  # noqa: F401 - registers the ids
 from clfd_bench.execution.limit_calibration import (
-    Calibration,
     CommandStream,
-    RolloutMeasurement,
     calibration_env,
     calibration_env_ids,
-    choose_cutoff,
-    compare,
-    differences,
     grid_peaks,
     measure,
     measure_rollout,
     stream_peaks,
+)
+from clfd_bench.execution.limit_derivation import (
+    Calibration,
+    RolloutMeasurement,
+    choose_cutoff,
+    compare,
+    differences,
 )
 from clfd_bench.execution.replay import replay_trajectory
 from clfd_bench.execution.rollout import rollout

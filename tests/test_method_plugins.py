@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 from run_checks import RUN_TIMING, cli, comparable, finish, kill_when
 
-from clfd_bench.harness.config import ConfigError, RunConfig, resolve_config
+from clfd_bench.harness.config import ConfigError, resolve_config
+from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.methods import (
     MethodClassError,
     UnknownMethodError,

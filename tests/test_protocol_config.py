@@ -6,8 +6,9 @@ import dataclasses
 
 import pytest
 
-from clfd_bench.harness import config as config_mod
-from clfd_bench.harness.config import ConfigError, RunConfig, resolve_config
+from clfd_bench.harness import baselines as baselines_mod
+from clfd_bench.harness.config import ConfigError, resolve_config
+from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.methods import list_methods
 
 
@@ -99,7 +100,7 @@ def test_unknown_profile_dataset_and_typo_in_file(tmp_path, monkeypatch):
     bad.write_text('method = "hn"\n[fast.defaults]\nbatch = "trajectories"\n'
                    '[fast.helloworld]\niterations = 5\nlr = 1e-3\nnode_hidden = [4]\n'
                    'task_emb_dim = 2\nhnet_hidden = [3]\nhorizon_strat = 0.5\n')
-    monkeypatch.setattr(config_mod, "baselines_file", lambda method: bad)
+    monkeypatch.setattr(baselines_mod, "baselines_file", lambda method: bad)
     with pytest.raises(ConfigError, match="unknown key 'horizon_strat' \\(did you mean "
                                           "'horizon_start'\\?\\)"):
         resolve_config("hn", "helloworld", "fast")

@@ -279,7 +279,8 @@ def test_every_learned_lasa_task_converges_to_its_goal_from_random_starts(tmp_pa
 
 # -- configuration ----------------------------------------------------------------------
 def test_snode_settings_come_from_the_shared_file_then_the_method_then_set(tmp_path):
-    from clfd_bench.harness.config import baselines_file, resolve_config
+    from clfd_bench.harness.baselines import baselines_file
+    from clfd_bench.harness.config import resolve_config
 
     paper = resolve_config("chn", "lasa", "paper", node="s").part("position")
     assert (paper.snode_clock, paper.solver, paper.activation, paper.lyap_hidden,
@@ -307,7 +308,8 @@ def test_a_methods_snode_table_can_set_one_part_and_misplaced_part_tables_raise(
     """CHN's [fast.snode] lowers lr for the sNODE, its [fast.snode.orientation] keeps the
     orientation model's and [fast.snode.robotasks.position] RoboTasks' position model's; a part
     table where no part is read fails instead of being ignored."""
-    from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
+    from clfd_bench.harness.baselines import baselines_file
+    from clfd_bench.harness.config import ConfigError, resolve_config
 
     pose = resolve_config("chn", "robotasks", "fast", node="s")
     assert (pose.part("position").lr, pose.part("orientation").lr) == (0.003, 0.003)
@@ -358,7 +360,8 @@ def test_snode_keys_on_other_runs_and_bad_values_are_refused_in_one_line(capsys,
 def test_a_datasets_snode_table_sets_that_dataset_alone(tmp_path):
     """[fast.snode.robotasks.position] changes RoboTasks' (and RoboTasks9's) position model
     and nothing else, after [fast.snode] and before --set; a misspelt dataset table fails."""
-    from clfd_bench.harness.config import ConfigError, baselines_file, resolve_config
+    from clfd_bench.harness.baselines import baselines_file
+    from clfd_bench.harness.config import ConfigError, resolve_config
 
     own = tmp_path / "chn.toml"
     shipped = "[fast.snode.robotasks.position]\nlr = 0.003\n"

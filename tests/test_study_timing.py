@@ -19,6 +19,8 @@ from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.tangent import quat_log_relative
 from clfd_bench.metrics.paper_numbers import inference
 from clfd_bench.studies import inference_timing as it
+from clfd_bench.studies import inference_timing_measure as itm
+from clfd_bench.studies import inference_timing_report as itr
 
 
 def _manual_field(method, index: int, t: float, y: torch.Tensor) -> torch.Tensor:
@@ -35,13 +37,13 @@ def _manual_field(method, index: int, t: float, y: torch.Tensor) -> torch.Tensor
 
 @pytest.mark.parametrize("method", ["hn", "chn"])
 def test_generated_node_is_the_learners_own(method):
-    learner, tasks = it.build_learner(method, "robotasks", "smoke", seed=3)
+    learner, tasks = itm.build_learner(method, "robotasks", "smoke", seed=3)
     assert learner.num_tasks == len(tasks) == 4  # the paper's number of task embeddings
-    parts = it.timed_parts(learner, tasks, source="built", index=2)
+    parts = itm.timed_parts(learner, tasks, source="built", index=2)
     assert [p.label for p in parts] == ["RoboTasks (pos)", "RoboTasks (ori)"]
     rng = np.random.default_rng(0)
     for tp in parts:
-        field = it.generate_node(tp.part, 2)
+        field = itm.generate_node(tp.part, 2)
         y = torch.as_tensor(rng.normal(size=(5, 3)), dtype=torch.float32)
         with torch.no_grad():
             ours = field(torch.tensor(0.7), y)
@@ -59,21 +61,21 @@ def test_generated_node_is_the_learners_own(method):
 
 
 def test_timed_integration_is_the_learners_prediction():
-    learner, tasks = it.build_learner("hn", "helloworld", "smoke", seed=1)
+    learner, tasks = itm.build_learner("hn", "helloworld", "smoke", seed=1)
     assert learner.num_tasks == 7
-    (tp,) = it.timed_parts(learner, tasks, source="built", index=4)
+    (tp,) = itm.timed_parts(learner, tasks, source="built", index=4)
     assert tp.times.shape == (1000,) and tp.solver.method == "rk4"
     with torch.no_grad():
-        traj = integrate(it.generate_node(tp.part, 4), tp.y0, tp.times, tp.solver)  # [1, T, 2]
+        traj = integrate(itm.generate_node(tp.part, 4), tp.y0, tp.times, tp.solver)  # [1, T, 2]
     task = tasks[4]
     pred = learner.predict(4, task.demos[:1, 0], task.times)  # [1, T, 2] data units
     norm = tp.part.normalizers[4]
     np.testing.assert_allclose(norm.invert(traj.double().numpy()), pred, rtol=1e-5, atol=1e-6)
     # RK4: 4 evaluations per output interval
-    field = it.generate_node(tp.part, 4)
-    assert it.count_evaluations(field, tp.y0, tp.times, tp.solver) == 4 * 999
+    field = itm.generate_node(tp.part, 4)
+    assert itm.count_evaluations(field, tp.y0, tp.times, tp.solver) == 4 * 999
     two = SolverSpec("rk4", substeps=2)
-    assert it.count_evaluations(field, tp.y0, tp.times[:11], two) == 4 * 10 * 2
+    assert itm.count_evaluations(field, tp.y0, tp.times[:11], two) == 4 * 10 * 2
 
 
 def test_time_call_runs_warmup_then_repeats():
@@ -83,11 +85,11 @@ def test_time_call_runs_warmup_then_repeats():
         calls.append(1)
         time.sleep(0.002)
 
-    ms = it.time_call(fn, repeats=3, warmup=2)
+    ms = itm.time_call(fn, repeats=3, warmup=2)
     assert len(calls) == 5 and len(ms) == 3
     assert all(2.0 <= m < 500 for m in ms)
     with pytest.raises(ValueError, match="repeats must be >= 1"):
-        it.time_call(fn, repeats=0, warmup=0)
+        itm.time_call(fn, repeats=0, warmup=0)
 
 
 def _cell(label, method, gen, step, integ, device="cpu"):
@@ -104,7 +106,7 @@ def test_comparison_table_has_the_papers_structure_and_ratios():
         for (label, m), v in reversed(list(paper.items()))
     ]
     cells.append(_cell("LASA", "HN", 1.0, 1.0, 1.0, device="cuda"))  # other device: ignored
-    rows = it.comparison_rows(cells, "cpu")
+    rows = itr.comparison_rows(cells, "cpu")
     assert [(r["dataset"], r["method"]) for r in rows] == list(paper)  # the paper's order
     assert len(rows) == 8
     for r in rows:
@@ -117,18 +119,18 @@ def test_comparison_table_has_the_papers_structure_and_ratios():
     assert lasa_hn["generate_ms"] == pytest.approx(6.02) and lasa_hn["paper_generate_ms"] == 3.01
     # a hand-made paper table: ours/paper, missing cells give no ratio
     own = {("HelloWorld", "CHN"): {"generate_ms": 4.0, "step_ms": 0.25, "integrate_ms": 50.0}}
-    rows = it.comparison_rows([_cell("HelloWorld", "CHN", 1.0, 1.0, 200.0),
+    rows = itr.comparison_rows([_cell("HelloWorld", "CHN", 1.0, 1.0, 200.0),
                                _cell("LASA", "HN", 1.0, 1.0, 1.0)], "cpu", paper=own)
     assert [(r["dataset"], r["method"]) for r in rows] == [("LASA", "HN"), ("HelloWorld", "CHN")]
     assert rows[0]["ratio_generate"] is None and rows[0]["paper_step_ms"] is None
     assert (rows[1]["ratio_generate"], rows[1]["ratio_step"], rows[1]["ratio_integrate"]) == (
         0.25, 4.0, 4.0)
-    md = it.to_markdown(rows, "cpu").splitlines()
+    md = itr.to_markdown(rows, "cpu").splitlines()
     assert md[2].startswith("| Dataset | Method |") and len(md) == 6
     assert "| HelloWorld | CHN | 1.00 | 1000.00 | 4.00 |" in md[5]
-    table = list(csv.DictReader(io.StringIO(it.to_csv({"cpu": rows}))))
+    table = list(csv.DictReader(io.StringIO(itr.to_csv({"cpu": rows}))))
     assert len(table) == 2 and float(table[1]["ratio_integrate"]) == 4.0
-    assert it.ratio(3.0, 0.0) is None and it.ratio(None, 1.0) is None
+    assert itr.ratio(3.0, 0.0) is None and itr.ratio(None, 1.0) is None
 
 
 def test_run_study_on_a_trained_run_is_cached(tmp_path):

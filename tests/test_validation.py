@@ -18,15 +18,14 @@ import pytest
 from run_checks import refused
 
 from clfd_bench.cli.main import main
-from clfd_bench.harness import config as config_mod
+from clfd_bench.harness import baselines as baselines_mod
 from clfd_bench.harness import validate
-from clfd_bench.harness.config import (
+from clfd_bench.harness.config import ConfigError, resolve_config
+from clfd_bench.harness.run_config import (
     DATASET_TABLES,
     PROFILES,
     RUN_RULES,
-    ConfigError,
     RunConfig,
-    resolve_config,
     run_rules,
 )
 from clfd_bench.learning.part_config import (
@@ -119,8 +118,8 @@ def test_bad_names(capsys, tmp_path, argv, expected):
 def baselines_copy(tmp_path, monkeypatch):
     """A writable copy of baselines/hn.toml that resolve_config reads instead."""
     copy = tmp_path / "hn.toml"
-    shutil.copy(config_mod.baselines_file("hn"), copy)
-    monkeypatch.setattr(config_mod, "baselines_file", lambda method: copy)
+    shutil.copy(baselines_mod.baselines_file("hn"), copy)
+    monkeypatch.setattr(baselines_mod, "baselines_file", lambda method: copy)
     return copy
 
 

@@ -45,7 +45,7 @@ def unknown_dataset(command: str, datasets: Iterable[str]) -> bool:
     valid names) for the first of ``datasets`` the registry does not hold; True if one was
     unknown (the caller then exits with 2)."""
     from clfd_bench.data import DATASETS
-    from clfd_bench.harness.config import suggest
+    from clfd_bench.harness.run_config import suggest
 
     for name in datasets:
         if name not in DATASETS:

@@ -41,7 +41,7 @@ def _resolve_envs(names: list[str]) -> list[str]:
                          == name.split("/")[-1]]:  # no version: the current one
             out.append(current[-1])
         else:
-            from clfd_bench.harness.config import suggest
+            from clfd_bench.harness.run_config import suggest
             from clfd_bench.harness.validate import InputError
 
             bare = [i.split("/", 1)[1] for i in specs]
@@ -72,7 +72,7 @@ def _families(text: str) -> list[str] | None:
     names = [x.strip() for x in text.split(",") if x.strip()]
     bad = [n for n in names if n not in FAMILIES]
     if bad or not names:
-        from clfd_bench.harness.config import suggest
+        from clfd_bench.harness.run_config import suggest
         from clfd_bench.harness.validate import InputError
 
         hint = suggest(bad[0], list(FAMILIES)) if bad else ""

@@ -49,7 +49,7 @@ def _train(args: argparse.Namespace, out: Path) -> dict[str, Path]:
 def _check_only(only: list[str], dataset: str) -> None:
     """Refuse a ``--only`` name that is not one of ``dataset``'s tasks (the closest named)."""
     from clfd_bench.data import DATASETS
-    from clfd_bench.harness.config import suggest
+    from clfd_bench.harness.run_config import suggest
 
     valid = sorted({n for order in DATASETS[dataset].task_names() for n in order})
     for name in only:

@@ -50,7 +50,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"clfd-bench study timing: {exc}", file=sys.stderr)
         return 2
     for device, rows in result.rows.items():
-        from clfd_bench.studies.inference_timing import to_markdown
+        from clfd_bench.studies.inference_timing_report import to_markdown
 
         print(to_markdown(rows, device))
     print(f"[timing] {result.measured} cells measured now, {result.cached} reused from "

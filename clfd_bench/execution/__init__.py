@@ -19,4 +19,6 @@ One concept per module (import what you need; nothing heavy is imported here):
 - `evaluate`: `evaluate_run`, a saved run scored by execution (`clfd-bench evaluate`).
 - `limit_calibration`: the measurement behind `clfd_bench.sim.limits`' bounds
   (`python eval/measure_limits.py`).
+- `limit_derivation`: what that measurement derives (`Calibration.derive`), and `compare` with
+  the constants of `clfd_bench.sim.limits`.
 """

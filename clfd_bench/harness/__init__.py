@@ -1,6 +1,9 @@
 """The harness: configs, the one training loop, the sequential protocol, results, checkpoints.
 
-* :mod:`~clfd_bench.harness.config` -- :class:`RunConfig` from ``baselines/<method>.toml``.
+* :mod:`~clfd_bench.harness.config` -- :func:`resolve_config`: a :class:`RunConfig` from
+  ``baselines/<method>.toml`` and ``--set`` overrides.
+* :mod:`~clfd_bench.harness.run_config` -- :class:`RunConfig` and its run-level values.
+* :mod:`~clfd_bench.harness.baselines` -- finding and reading the hyperparameter files.
 * :mod:`~clfd_bench.harness.loop` -- :func:`train_task`, the only training loop.
 * :mod:`~clfd_bench.harness.learner` -- data <-> NODE space (normalisation, tangent map).
 * :mod:`~clfd_bench.harness.protocol` -- :func:`run_training`, the sequential protocol.
@@ -10,6 +13,8 @@
 * :mod:`~clfd_bench.harness.worker` -- a grid's worker process (``python -m``).
 * :mod:`~clfd_bench.harness.predict` -- :func:`predict` from a run directory.
 * :mod:`~clfd_bench.harness.external` -- :func:`score_predictions` made elsewhere.
+* :mod:`~clfd_bench.harness.external_format` -- reading and checking predictions made
+  elsewhere (their format).
 
 Names are imported lazily so that importing one module does not pull in the others.
 """
@@ -34,7 +39,7 @@ __all__ = [
 
 _WHERE = {
     "ConfigError": "config",
-    "RunConfig": "config",
+    "RunConfig": "run_config",
     "resolve_config": "config",
     "train_task": "loop",
     "Learner": "learner",

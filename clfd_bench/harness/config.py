@@ -1,4 +1,8 @@
-"""Run configuration: frozen dataclasses loaded from ``baselines/<method>.toml``.
+"""Resolving a run's configuration (:func:`resolve_config`): the layers of
+``baselines/<method>.toml`` and ``--set`` overrides merged into a checked
+:class:`~clfd_bench.harness.run_config.RunConfig`, every bad value named with where it came
+from. The files are found and read by :mod:`clfd_bench.harness.baselines`; the dataclass and
+its run-level rules are :mod:`clfd_bench.harness.run_config`.
 
 A baselines file holds, per profile (``paper``, ``full``, ``fast``, ``smoke``), a
 ``defaults`` table and one table per dataset; pose datasets (RoboTasks) have ``position`` and
@@ -16,12 +20,14 @@ optional ``[profile.snode]`` table. Values resolve as
 
 ``robotasks9`` uses the ``robotasks`` tables unless it has its own. Every key must be a field
 of :class:`PartConfig` that the method uses; anything else (a typo, ``beta`` for SG) raises
-with the valid names. The resolved :class:`RunConfig` is saved with every run.
+with the valid names. The resolved :class:`~clfd_bench.harness.run_config.RunConfig` is saved
+with every run.
 
 Every value is checked once resolved, before any work: its type and range are declared in one
 table per dataclass (:data:`~clfd_bench.learning.part_config.PART_RULES` next to
-:class:`PartConfig`, :data:`RUN_RULES` next to :class:`RunConfig`; ``order`` and ``tasks``
-bounded by the dataset), rules between values in
+:class:`PartConfig`, :data:`~clfd_bench.harness.run_config.RUN_RULES` next to
+:class:`~clfd_bench.harness.run_config.RunConfig`; ``order`` and ``tasks`` bounded by the
+dataset), rules between values in
 :data:`~clfd_bench.learning.part_config.PART_CONSTRAINTS`. A bad value raises
 :class:`ConfigError` with one line naming the key, the value, where it came from
 (``--set key=value``, ``baselines/<method>.toml line N [profile.table]``, the default, or the
@@ -31,10 +37,9 @@ command-line option), the valid range and the fix.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +48,24 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
+from clfd_bench.harness.baselines import (
+    _DOC_KEYS,
+    SNODE_FILE,
+    SNODE_TABLE,
+    _profile_table,
+    _snode_profile,
+    _Source,
+    _source,
+)
+from clfd_bench.harness.run_config import (
+    DATASET_TABLES,
+    PARTS_POSE,
+    POSE_DATASETS,
+    PROFILES,
+    RunConfig,
+    check_run_values,
+    suggest,
+)
 from clfd_bench.learning.part_config import (
     COMMON_KEYS,
     PART_CONSTRAINTS,
@@ -53,236 +76,14 @@ from clfd_bench.learning.part_config import (
     PartConfig,
     Rule,
 )
-from clfd_bench.node_variants import NODE_VARIANTS
-from clfd_bench.profiles import PROFILE_NAMES
-from clfd_bench.resources import resource_path
 
 __all__ = [
     "ConfigError",
     "PART_RULES",
-    "PROFILES",
-    "RUN_RULES",
     "PartConfig",
-    "RunConfig",
-    "check_run_values",
-    "load_profile_table",
     "parse_override",
     "resolve_config",
-    "run_rules",
-    "suggest",
 ]
-
-PROFILES = PROFILE_NAMES
-"""The profiles a baselines file may hold (:mod:`clfd_bench.profiles`)."""
-DATASET_TABLES = ("lasa", "helloworld", "robotasks", "robotasks9")
-POSE_DATASETS = ("robotasks", "robotasks9")
-PARTS_POSE = ("position", "orientation")
-_DOC_KEYS = ("notes",)
-SNODE_TABLE = "snode"
-"""The table of a method's profile that applies to stable-NODE runs (``--node s``) only."""
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """Everything that determines a run's results (saved as ``config`` in results.json).
-
-    Attributes:
-        method: registered CL method name. dataset: dataset name. profile: baselines profile.
-        order: task order (0, 1, 2). seed: random seed. node: ``t`` (NODE^T), ``i``
-            (NODE^I) or ``s`` (sNODE), :data:`~clfd_bench.node_variants.NODE_VARIANTS`.
-        tasks: number of tasks learned (the first ``tasks`` of the order).
-        parts: ``(("position", cfg),)`` or, for poses, position and orientation configs.
-        overrides: the ``--set`` overrides that were applied (for the record).
-    """
-
-    method: str
-    dataset: str
-    profile: str
-    order: int
-    seed: int
-    node: str
-    tasks: int | None
-    parts: tuple[tuple[str, PartConfig], ...]
-    overrides: tuple[str, ...] = field(default=())
-
-    def __post_init__(self) -> None:
-        for key, rule in RUN_RULES.items():  # dataset-dependent bounds: resolve_config
-            _, problem = rule.check(key, getattr(self, key))
-            if problem:
-                raise ConfigError(problem)
-
-    def part(self, name: str) -> PartConfig:
-        """The config of part ``name``."""
-        for n, cfg in self.parts:
-            if n == name:
-                return cfg
-        raise KeyError(f"no part {name!r}; parts: {[n for n, _ in self.parts]}")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain data for JSON."""
-        return {
-            "method": self.method,
-            "dataset": self.dataset,
-            "profile": self.profile,
-            "order": self.order,
-            "seed": self.seed,
-            "node": self.node,
-            "tasks": self.tasks,
-            "parts": {name: cfg.to_dict() for name, cfg in self.parts},
-            "overrides": list(self.overrides),
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> RunConfig:
-        """Inverse of :meth:`to_dict`."""
-        parts = tuple(
-            (name, _build_part(dict(values), f"saved config part {name!r}"))
-            for name, values in d["parts"].items()
-        )
-        return cls(
-            method=d["method"], dataset=d["dataset"], profile=d["profile"], order=d["order"],
-            seed=d["seed"], node=d["node"], tasks=d["tasks"], parts=parts,
-            overrides=tuple(d.get("overrides", ())),
-        )
-
-
-def suggest(key: str, valid: Sequence[str]) -> str:
-    """`` (did you mean 'x'?)`` for the valid name closest to ``key``, or ``""``."""
-    close = difflib.get_close_matches(key, list(valid), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-def _build_part(values: dict[str, Any], where: str) -> PartConfig:
-    """A :class:`PartConfig` from plain values (a saved config), every value checked."""
-    coerced: dict[str, Any] = {}
-    extras = values.pop("extras", None) or {}
-    if not isinstance(extras, Mapping):
-        raise ConfigError(f"{where}: extras must be a table of a method's own "
-                          f"hyperparameters, got {extras!r}")
-    coerced["extras"] = {k: tuple(v) if isinstance(v, list) else v for k, v in extras.items()}
-    for key, value in values.items():
-        if key not in PART_FIELDS:
-            raise ConfigError(
-                f"{where}: unknown key {key!r}{suggest(key, list(PART_FIELDS))}; "
-                f"valid keys: {', '.join(PART_FIELDS)}"
-            )
-        if value is None:
-            continue
-        coerced[key], wrong_type = PART_RULES[key].coerce(value)
-        if wrong_type:
-            raise ConfigError(f"{where}: {key} must be {wrong_type}, got {value!r}")
-    missing = [
-        f.name for f in fields(PartConfig)
-        if f.default is dataclasses.MISSING and f.name not in coerced
-    ]
-    if missing:
-        raise ConfigError(f"{where}: missing required key(s) {missing}")
-    try:
-        return PartConfig(**coerced)  # checks the ranges
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: {exc}") from None
-
-
-def baselines_file(method: str) -> Path:
-    """``baselines/<method>.toml``."""
-    return resource_path("baselines", f"{method}.toml")
-
-
-SNODE_FILE = "snode.toml"
-"""``baselines/snode.toml``: the stable NODE's settings per profile, for every method."""
-
-
-@dataclass(frozen=True)
-class _Source:
-    """Where a method's hyperparameters are read from. ``label`` is how messages name the
-    file (``baselines/hn.toml`` for the built-ins, the path for a plugin's)."""
-
-    method: str
-    name: str
-    path: Path
-    label: str
-
-
-def _source(method: str, config_file: str | Path | None = None) -> _Source:
-    """The method's hyperparameter file: ``config_file`` if given, else the plugin class's
-    own, else ``baselines/<name>.toml``."""
-    from clfd_bench.methods import get_method_class, own_config_file
-
-    cls = get_method_class(method)
-    if config_file is not None:
-        path = Path(config_file).expanduser().resolve()
-    else:
-        path = own_config_file(cls)
-    if path is None:
-        return _Source(method, cls.name, baselines_file(cls.name), f"baselines/{cls.name}.toml")
-    return _Source(method, cls.name, path, str(path))
-
-
-def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:
-    path = src.path
-    if not path.is_file():
-        fix = ("; pass --config PATH (a TOML with the tables of baselines/*.toml, see "
-               "docs/methods.md) or set the method class's config_file")
-        raise ConfigError(f"no hyperparameter file for method {src.method!r}: {path} does not "
-                          f"exist{fix}")
-    try:
-        with path.open("rb") as fh:
-            return path, tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(
-            f"{path} is not valid TOML: {exc}; fix the file at that line"
-        ) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-def _snode_profile(profile: str) -> tuple[dict[str, Any], _Source]:
-    """The ``[profile]`` table of ``baselines/snode.toml`` (only stable-NODE keys and the
-    solver/network keys it changes) and its source, for error messages."""
-    src = _Source("snode", "snode", baselines_file("snode"), f"baselines/{SNODE_FILE}")
-    path, doc = _read_baselines(src)
-    table = doc.get(profile)
-    if not isinstance(table, dict):
-        raise ConfigError(f"{path} has no [{profile}] table; it needs one per profile "
-                          f"({', '.join(PROFILES)})")
-    return table, src
-
-
-def load_profile_table(method: str, profile: str,
-                       config_file: str | Path | None = None) -> dict[str, Any]:
-    """The raw ``[profile]`` table of the method's hyperparameter file (validated
-    structure): ``baselines/<method>.toml``, or for a plugin ``config_file`` / its own."""
-    return _profile_table(_source(method, config_file), profile)
-
-
-def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
-    if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}{suggest(profile, PROFILES)}; "
-                          f"valid: {', '.join(PROFILES)}")
-    path, doc = _read_baselines(src)
-    top_valid = {"method", "description", *PROFILES}
-    for key in doc:
-        if key not in top_valid:
-            raise ConfigError(
-                f"{path}: unknown top-level key {key!r}{suggest(key, sorted(top_valid))}; "
-                f"valid: {', '.join(sorted(top_valid))}"
-            )
-    if doc.get("method") != src.name:
-        raise ConfigError(f"{path}: 'method' must be {src.name!r} (the class's name), got "
-                          f"{doc.get('method')!r}")
-    if profile not in doc:
-        raise ConfigError(f"{path} has no [{profile}] profile; it has: "
-                          f"{', '.join(p for p in PROFILES if p in doc)}")
-    table = doc[profile]
-    valid = {"defaults", SNODE_TABLE, *DATASET_TABLES, *_DOC_KEYS}
-    for key in table:
-        if key not in valid:
-            raise ConfigError(
-                f"{path} [{profile}]: unknown table {key!r}{suggest(key, sorted(valid))}; "
-                f"valid: {', '.join(sorted(valid))}"
-            )
-    return table
-
 
 def parse_override(text: str, own_keys: Sequence[str] = ()) -> tuple[str | None, str, Any]:
     """``"[part.]key=value"`` -> ``(part or None, key, value)``; the value is TOML
@@ -308,64 +109,6 @@ def parse_override(text: str, own_keys: Sequence[str] = ()) -> tuple[str | None,
             f"valid keys: {', '.join(known)}"
         )
     return part, key, value
-
-
-# ------------------------------------------------------------------- run-level values
-RUN_RULES: dict[str, Rule] = {
-    "method": Rule("str", what="a registered CL method"),
-    "dataset": Rule("str", choices=DATASET_TABLES),
-    "profile": Rule("str", choices=PROFILES),
-    "order": Rule("int", lo=0, what="task order; below the dataset's number of orders"),
-    "seed": Rule("int", lo=0, hi=2**32 - 1, what="random seed"),
-    "node": Rule("str", choices=tuple(NODE_VARIANTS),
-                 what=", ".join(f"{k}: {v}" for k, v in NODE_VARIANTS.items())),
-    "tasks": Rule("int", lo=1, optional=True, what="at most the dataset's number of tasks"),
-}
-"""The type and valid range of every scalar :class:`RunConfig` field (``parts`` are checked
-by :data:`PART_RULES`); ``order`` and ``tasks`` are also bounded by the dataset
-(:func:`run_rules`), ``method`` by the method registry."""
-
-
-def run_rules(dataset: str, order: int | None = None) -> dict[str, Rule]:
-    """:data:`RUN_RULES` with the bounds of ``dataset`` filled in: ``order`` below its number
-    of orders and, given a valid ``order``, ``tasks`` at most its number of tasks."""
-    from clfd_bench.data import DATASETS
-    from clfd_bench.methods import list_methods
-
-    rules = dict(RUN_RULES)
-    rules["method"] = dataclasses.replace(rules["method"], choices=tuple(list_methods()))
-    info = DATASETS.get(dataset)
-    if info is None:
-        return rules
-    rules["order"] = dataclasses.replace(
-        rules["order"], hi=info.num_orders - 1,
-        what=f"{dataset} has {info.num_orders} task order{'s' if info.num_orders > 1 else ''}")
-    if isinstance(order, int) and not isinstance(order, bool) and 0 <= order < info.num_orders:
-        n = len(info.task_names()[order])
-        rules["tasks"] = dataclasses.replace(
-            rules["tasks"], hi=n, what=f"{dataset} has {n} tasks")
-    return rules
-
-
-def check_run_values(
-    values: Mapping[str, Any], dataset: str, arg_names: Mapping[str, str] | None = None
-) -> None:
-    """Check run-level values (``order``, ``seed``, ``node``, ``tasks``, ...) of a run on
-    ``dataset`` against :func:`run_rules`.
-
-    Args:
-        arg_names: the option each value came from, for the message (default ``--<name>``).
-
-    Raises:
-        ConfigError: one line naming the option, the value and the valid range.
-    """
-    names = {key: f"--{key}" for key in RUN_RULES} | dict(arg_names or {})
-    # the task count is only looked up for a --tasks to check (robotasks9 reads a file)
-    rules = run_rules(dataset, values.get("order") if values.get("tasks") is not None else None)
-    for key, value in values.items():
-        _, problem = rules[key].check(key, value)
-        if problem:
-            raise ConfigError(f"{names[key]} {value}: {problem}")
 
 
 @dataclass(frozen=True)
@@ -468,7 +211,8 @@ def resolve_config(
     config_file: str | Path | None = None,
 ) -> RunConfig:
     """Resolve the configuration of one run from the baselines file and overrides, and check
-    every value of it (:data:`PART_RULES`, :data:`RUN_RULES`).
+    every value of it (:data:`PART_RULES`,
+    :data:`~clfd_bench.harness.run_config.RUN_RULES`).
 
     Args:
         method: a built-in name, an installed plugin's name or an import spec

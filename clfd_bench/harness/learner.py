@@ -22,7 +22,7 @@ import torch
 from torch import Tensor
 
 from clfd_bench.data.types import Task
-from clfd_bench.harness.config import PartConfig, RunConfig
+from clfd_bench.harness.config import PartConfig
 from clfd_bench.harness.loop import (
     TrainingDivergedError,
     TrainStats,
@@ -30,6 +30,7 @@ from clfd_bench.harness.loop import (
     solver_spec,
     train_task,
 )
+from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.learning.node import NodeSpec
 from clfd_bench.learning.normalize import Normalizer
 from clfd_bench.learning.odeint import integrate

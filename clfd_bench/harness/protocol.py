@@ -29,7 +29,7 @@ import torch
 from clfd_bench.data import load_dataset
 from clfd_bench.data.types import Dataset
 from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
-from clfd_bench.harness.config import PartConfig, RunConfig
+from clfd_bench.harness.config import PartConfig
 from clfd_bench.harness.evaluation import (
     SCHEMA_VERSION,
     cpu_provenance,
@@ -41,6 +41,7 @@ from clfd_bench.harness.evaluation import (
 )
 from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.loop import warm_up
+from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.io import json_safe
 from clfd_bench.runs import CHECKPOINT_FILE, RunDir
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from clfd_bench.runs import RunDir
 
 if TYPE_CHECKING:
-    from clfd_bench.harness.config import RunConfig
+    from clfd_bench.harness.run_config import RunConfig
 
 __all__ = [
     "Source",

@@ -6,7 +6,7 @@ the fix; ``clfd-bench`` prints that line and exits with code 2 (:mod:`clfd_bench
 They create nothing: a refused command leaves no folder behind. The resolved configuration
 itself is checked by :func:`clfd_bench.harness.config.resolve_config` (every key's type and
 range: :data:`~clfd_bench.learning.part_config.PART_RULES`,
-:data:`~clfd_bench.harness.config.RUN_RULES`).
+:data:`~clfd_bench.harness.run_config.RUN_RULES`).
 """
 
 from __future__ import annotations

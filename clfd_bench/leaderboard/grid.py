@@ -173,7 +173,7 @@ class RunSpec:
         return [f"{key}={value}" for key, value in self.overrides]
 
     def config(self, arg_names: dict[str, str] | None = None):
-        """The run's resolved configuration (:class:`~clfd_bench.harness.config.RunConfig`);
+        """The run's resolved configuration (:class:`~clfd_bench.harness.run_config.RunConfig`);
         raises ``ConfigError`` for an unknown key or value before anything is trained
         (``arg_names``: the options run-level values came from, named in its errors)."""
         return self.train_spec().config(arg_names)

@@ -46,7 +46,7 @@ def check_methods(methods: list[str]) -> None:
         UnknownMethodError: the first unknown name, with the valid methods and entries.
         MethodClassError: a plugin class that is not a method.
     """
-    from clfd_bench.harness.config import suggest
+    from clfd_bench.harness.run_config import suggest
     from clfd_bench.leaderboard.entries import ENTRIES, entry_help
     from clfd_bench.methods import UnknownMethodError, get_method_class, list_methods
 

@@ -5,6 +5,8 @@
 - :mod:`~clfd_bench.studies.sensitivity`: robustness to the regularisation hyperparameters.
 - :mod:`~clfd_bench.studies.inference_timing`: hypernetwork → NODE generation, a NODE step, a
   1000-step trajectory.
+  What is timed: :mod:`~clfd_bench.studies.inference_timing_measure`; the tables:
+  :mod:`~clfd_bench.studies.inference_timing_report`.
 - :mod:`~clfd_bench.studies.task_time`: training time per task as tasks accrue.
 - :mod:`~clfd_bench.studies.loops`: loops with and without a time input (self-crossings,
   DTW, execution per task).

@@ -106,7 +106,7 @@ def paper_grid(
         GridError: an unknown or inapplicable dataset, method, node, order, or an empty list.
     """
     from clfd_bench.data import DATASETS
-    from clfd_bench.harness.config import PROFILES
+    from clfd_bench.harness.run_config import PROFILES
 
     datasets = list(PAPER_GRID) if datasets is None else list(datasets)
     seeds = list(PAPER_SEEDS) if seeds is None else list(seeds)
