@@ -42,3 +42,20 @@ def pose_env_cls():
     BarePoseEnv.starts = backward_start_configs(robot_model(), task.positions[:1],
                                                 task.quaternions[:1])
     return BarePoseEnv
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist (`bash run.sh test` runs ``-n auto --dist loadgroup``): the tests of a
+    module that share a module- or class-scoped fixture run on one worker, so that fixture
+    (a trained run, a built site) is made once; every other test is dealt out alone. Runs
+    before xdist reads the groups (``tryfirst``)."""
+    if not config.pluginmanager.hasplugin("xdist"):
+        return
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        if any(d.scope in ("module", "class", "package")
+               for defs in info.name2fixturedefs.values() for d in defs):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
