@@ -55,8 +55,9 @@ export MUJOCO_GL="${MUJOCO_GL:-egl}"
 
 case "$what" in
   setup) echo "[run.sh] ready: . $venv/bin/activate" >&2 ;;
-  # one pytest-xdist worker per core; the tests that share a module's fixture stay together
-  # (tests/conftest.py). More arguments go to pytest (e.g. `bash run.sh test tests/test_data.py`).
-  test) exec python -m pytest -q -n auto --dist loadgroup "${@:2}" ;;
+  # One pytest-xdist worker per core; the tests that share a module's fixture stay together
+  # (tests/conftest.py: FixtureScopeScheduling). More arguments go to pytest, e.g.
+  # `bash run.sh test tests/test_data.py`.
+  test) exec python -m pytest -q -n auto --dist loadscope "${@:2}" ;;
   main) exec python eval/main_job.py "${@:2}" ;;
 esac

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import ast
 import os
+from pathlib import Path
 
 os.environ.setdefault("CLFD_NO_PROGRESS", "1")
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -44,18 +46,51 @@ def pose_env_cls():
     return BarePoseEnv
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """Under pytest-xdist (`bash run.sh test` runs ``-n auto --dist loadgroup``): the tests of a
-    module that share a module- or class-scoped fixture run on one worker, so that fixture
-    (a trained run, a built site) is made once; every other test is dealt out alone. Runs
-    before xdist reads the groups (``tryfirst``)."""
-    if not config.pluginmanager.hasplugin("xdist"):
-        return
-    for item in items:
-        info = getattr(item, "_fixtureinfo", None)
-        if info is None:
-            continue
-        if any(d.scope in ("module", "class", "package")
-               for defs in info.name2fixturedefs.values() for d in defs):
-            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+
+def _shares_a_fixture(path: Path) -> bool:
+    """Whether the test file at `path` defines a module-, class- or package-scoped fixture."""
+    try:
+        tree = ast.parse(path.read_text())
+    except (OSError, SyntaxError):
+        return False
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and any(
+                k.arg == "scope" and isinstance(k.value, ast.Constant)
+                and k.value.value in ("module", "class", "package") for k in node.keywords):
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+            if name == "fixture":
+                return True
+    return False
+
+
+try:
+    from xdist.scheduler import LoadScopeScheduling
+except ImportError:  # pytest-xdist is a dev dependency; without it the suite runs in one process
+    LoadScopeScheduling = None
+
+if LoadScopeScheduling is not None:
+
+    class FixtureScopeScheduling(LoadScopeScheduling):
+        """``--dist loadscope``, refined: a test file that defines a module- or class-scoped
+        fixture (a trained run, a built site) is one unit of work, so the fixture is made once,
+        on one worker; every other test is a unit of its own, dealt to whichever worker is
+        free. (``--dist loadgroup`` with ``xdist_group`` marks would say the same, but on
+        pytest 9.2 it silently stops grouping: pytest-xdist issue 1386.)"""
+
+        def __init__(self, config, log=None):
+            super().__init__(config, log)
+            self._shared: dict[str, bool] = {}
+
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            if module not in self._shared:
+                self._shared[module] = _shares_a_fixture(self.config.rootpath / module)
+            return module if self._shared[module] else nodeid
+
+    def pytest_xdist_make_scheduler(config, log):
+        """`bash run.sh test` runs ``-n auto --dist loadscope``: schedule it by
+        `FixtureScopeScheduling`."""
+        if config.getvalue("dist") == "loadscope":
+            return FixtureScopeScheduling(config, log)
+        return None
