@@ -167,12 +167,15 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     shutil.copytree(EXAMPLE, root, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     train = ["train", "--method", "clfd_l2:L2Anchor", "--dataset", "helloworld",
              "--profile", "smoke", "--tasks", "2", "--quiet"]
-    finish(_cli([*train, "--out", str(tmp_path / "ref")], root))
+    # the reference run is trained where the grid below keeps this run: the grid counts it
+    board = tmp_path / "board"
+    ref_dir = board / "runs" / "helloworld" / "l2" / "smoke_nodet_o0_s0_k2"
+    finish(_cli([*train, "--out", str(ref_dir)], root))
     killed = tmp_path / "killed"
     proc = _cli([*train, "--out", str(killed)], root)
     kill_when(proc, (killed / "predictions" / "after_task_0.npz").exists)
     finish(_cli([*train, "--out", str(killed)], root))
-    ref = json.loads((tmp_path / "ref" / "results.json").read_text())
+    ref = json.loads((ref_dir / "results.json").read_text())
     again = json.loads((killed / "results.json").read_text())
     assert ref["complete"] and ref["config"]["method"] == "clfd_l2:L2Anchor"
     assert ref["config"]["parts"]["position"]["extras"] == {"l2_lambda": 1.0}
@@ -181,7 +184,6 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     assert len(ref["success"]) == 2 and all(ref["success"][1][j] for j in range(2))
     assert ref["sim_cl_metrics"]["ACC"] is not None
 
-    board = tmp_path / "board"
     out = finish(_cli(["leaderboard", "--dataset", "helloworld", "--methods",
                       "ft,clfd_l2:L2Anchor", "--profile", "smoke", "--tasks", "2",
                       "--workers", "1", "--out", str(board)], root))
@@ -190,6 +192,8 @@ def test_plugin_trains_resumes_after_sigkill_executes_and_is_ranked(tmp_path):
     assert all(r["runs_ok"] == 1 for r in table["rows"])
     assert (board / "runs" / "helloworld" / "l2").is_dir()  # the class's name as folder
     assert "CLFD_L2:L2ANCHOR" in (board / "leaderboard.md").read_text().upper()
+    # the run `train` made is the grid's, not trained again
+    assert json.loads((ref_dir / "results.json").read_text())["train_time_s"] == ref["train_time_s"]
 
 
 def test_l2_forgets_less_than_ft_and_pays_in_plasticity(plugin_dir, tmp_path):
