@@ -49,7 +49,10 @@ def test_runs_executed_by_a_changed_simulator_fail_the_grid_then_resume(
     results.write_text(json.dumps(doc))
     trained = doc["train_time_s"]
     code = main([*ARGS, "--out", str(tmp_path)])
-    assert code == 0, capsys.readouterr().err
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "1 run: 0 trained now, 1 executed again (trained before), 0 already done" in (
+        captured.out + captured.err)
     done = json.loads(results.read_text())
     assert done["sim"]["fingerprint"] == sim_fingerprint()
     assert done["train_time_s"] == trained

@@ -61,9 +61,7 @@ def _run(args: argparse.Namespace) -> int:
         configs=dict(args.configs),
     )
     print(
-        f"[leaderboard] {len(result.specs)} runs: {len(result.trained)} trained now, "
-        f"{len(result.skipped)} already done, {len(result.failed)} failed "
-        f"({result.seconds:.0f} s)"
+        f"[leaderboard] {result.counts()} ({result.seconds:.0f} s)"
     )
     return finish("leaderboard", Path(args.out) / "leaderboard.md", result.files, result.failed)
 

@@ -149,8 +149,7 @@ def _run(args: argparse.Namespace) -> int:
     grid = run_grid("paper run", specs, args, desc="paper grid")
     if grid is None:  # refused before anything was trained
         return 2
-    print(f"[paper] {len(specs)} runs: {len(grid.trained)} trained or resumed now, "
-          f"{len(grid.skipped)} already done, {len(grid.failed)} failed")
+    print(f"[paper] {grid.counts()}")
     code = _tables(args, specs, grid.failed)
     return 1 if grid.failed else code
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from clfd_bench.leaderboard.aggregate import MethodRow, RunRecord, aggregate
@@ -15,7 +15,6 @@ from clfd_bench.leaderboard.grid import (
     make_grid,
     reread_simulator,
     run_state,
-    run_status,
 )
 from clfd_bench.leaderboard.plots import plot_all
 from clfd_bench.leaderboard.report import write_tables
@@ -93,6 +92,12 @@ class LeaderboardResult:
     rows: list[MethodRow]
     files: list[Path]
     seconds: float
+    executed_again: list[RunSpec] = field(default_factory=list)
+
+    def counts(self) -> str:
+        """What the grid did, in words (`GridRun.counts`)."""
+        return run_counts(len(self.specs), len(self.trained), len(self.executed_again),
+                          len(self.skipped), len(self.failed))
 
 
 def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
@@ -166,13 +171,31 @@ def included_records(paths: list[Path], specs: list[RunSpec],
 
 @dataclass
 class GridRun:
-    """What :func:`run_specs` did: runs trained now, skipped as done, failed; final records."""
+    """What :func:`run_specs` did: runs run now (``trained``: trained, resumed or executed
+    again), skipped as done, failed; final records. ``executed_again``: those of ``trained``
+    whose training was finished before, which only executed their predictions again (e.g.
+    under a changed simulator)."""
 
     specs: list[RunSpec]
     trained: list[RunSpec]
     skipped: list[RunSpec]
     failed: list[RunOutcome]
     records: list[RunRecord]
+    executed_again: list[RunSpec] = field(default_factory=list)
+
+    def counts(self) -> str:
+        """"7 runs: 2 trained now, 5 executed again (trained before), 0 already done,
+        0 failed"."""
+        return run_counts(len(self.specs), len(self.trained), len(self.executed_again),
+                          len(self.skipped), len(self.failed))
+
+
+def run_counts(runs: int, run_now: int, executed_again: int, skipped: int, failed: int) -> str:
+    """What a grid did, in words (`GridRun.counts`)."""
+    again = (f", {executed_again} executed again (trained before)" if executed_again else "")
+    plural = "" if runs == 1 else "s"
+    return (f"{runs} run{plural}: {run_now - executed_again} trained now{again}, {skipped} "
+            f"already done, {failed} failed")
 
 
 def run_specs(
@@ -195,8 +218,11 @@ def run_specs(
 
 
 def _run_specs(specs: list[RunSpec], out: Path, options: GridOptions, desc: str) -> GridRun:
-    todo = [s for s in specs if run_status(s, out) != "done"]
+    states = {s.name: run_state(s, out) for s in specs}
+    todo = [s for s in specs if states[s.name].state != "done"]
     skipped = [s for s in specs if s not in todo]
+    executed_again = [s for s in todo if states[s.name].state == "partial"
+                      and states[s.name].trained >= states[s.name].wanted]
     failed: list[RunOutcome] = []
     if todo:
         bar = progress(total=len(todo), desc=f"{desc} ({len(skipped)} done before)")
@@ -224,7 +250,7 @@ def _run_specs(specs: list[RunSpec], out: Path, options: GridOptions, desc: str)
         if record.status == "failed" and record.spec.name not in crashed:
             failed.append(RunOutcome(record.spec, False, record.error, 0.0))
         records.append(record)
-    return GridRun(specs, todo, skipped, failed, records)
+    return GridRun(specs, todo, skipped, failed, records, executed_again)
 
 
 def run_leaderboard(
@@ -287,5 +313,6 @@ def run_leaderboard(
     }
     files = write_tables(rows, out, meta) + figures
     return LeaderboardResult(
-        specs, grid.trained, grid.skipped, grid.failed, rows, files, time.perf_counter() - start
+        specs, grid.trained, grid.skipped, grid.failed, rows, files, time.perf_counter() - start,
+        grid.executed_again,
     )
