@@ -228,7 +228,7 @@ def test_cli_run_trains_missing_runs_once(tmp_path, capsys):
             "--seeds", "0", "--orders", "0", "--profile", "smoke", "--tasks", "1", "--no-sim",
             "--out", str(tmp_path)]
     assert main(argv) == 0
-    assert "1 trained or resumed now, 0 already done" in capsys.readouterr().out
+    assert "1 run: 1 trained now, 0 already done" in capsys.readouterr().out
     results = tmp_path / "runs/helloworld/sg/smoke_nodet_o0_s0_k1_nosim/results.json"
     before = results.stat().st_mtime_ns
     assert main(argv) == 0
