@@ -232,7 +232,7 @@ def test_cli_run_trains_missing_runs_once(tmp_path, capsys):
     results = tmp_path / "runs/helloworld/sg/smoke_nodet_o0_s0_k1_nosim/results.json"
     before = results.stat().st_mtime_ns
     assert main(argv) == 0
-    assert "0 trained or resumed now, 1 already done" in capsys.readouterr().out
+    assert "1 run: 0 trained now, 1 already done" in capsys.readouterr().out
     assert results.stat().st_mtime_ns == before
     table = json.loads((tmp_path / "paper_tables.json").read_text())["cl_tables"][0]
     assert table["rows"][0]["runs_done"] == 1 and table["rows"][0]["ours"]["ACC"] is not None
