@@ -109,14 +109,14 @@ BUNDLES: dict[str, Bundle] = {
         Bundle(
             name="helloworld-fast",
             file="helloworld-fast.tar.xz",
-            sha256="16723d04a2471a0656dad194fdc462476f4820aab88c52a8b2aeb8649ab43d96",
+            sha256="0f172086ede627b5b81d1d28fcbe1b2ae3730abc970336ee9df80fa4fbbd2ce2",
             description="the README's main job: HelloWorld (7 letters), all 7 methods, "
                         "`fast` profile, seed 0, order 0, executed on the simulated Panda",
             dataset="helloworld",
             profile="fast",
             methods=("sg", "ft", "rep", "si", "mas", "hn", "chn"),
             made_with_version="0.1.0",
-            size=20593704,
+            size=20610152,
         ),
     )
 }
