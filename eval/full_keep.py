@@ -50,13 +50,17 @@ def _manifest(keep: Path) -> dict:
 
 
 def save(out: Path, keep: Path) -> int:
-    """Archives the finished runs of ``out`` not kept yet; returns how many it archived."""
+    """Archives the finished runs of ``out`` not kept yet, and those kept from an earlier
+    simulator that this one has executed again (restored and refreshed: archived again, so
+    the next restore needs no execution); returns how many it archived."""
     manifest, fingerprint, saved = _manifest(keep), sim_fingerprint(), 0
     for run in find_runs(out):
         key = run.path.relative_to(out).as_posix()
-        if key in manifest:
+        if key in manifest and manifest[key].get("simulator") == fingerprint:
             continue
         results, tasks, state = _state(run, fingerprint)
+        if key in manifest and (state.state != "done" or tasks != manifest[key]["tasks"]):
+            continue  # kept; not (yet) executed by this simulator
         if state.state != "done" or tasks == 0:
             print(f"  {key}: not kept ({state.reason or state.state})")
             continue
@@ -71,7 +75,7 @@ def save(out: Path, keep: Path) -> int:
                          "simulator": (results.get("sim") or {}).get("fingerprint")}
         atomic_write_json(keep / MANIFEST, dict(sorted(manifest.items())))
         saved += 1
-        print(f"  {key}: kept ({archive.stat().st_size / 1e6:.2f} MB)")
+        print(f"  {key}: kept ({archive.stat().st_size / 1e6:.2f} MB, simulator {fingerprint})")
     return saved
 
 

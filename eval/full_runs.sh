@@ -18,8 +18,9 @@
 # CLFD_FULL_PROFILE another profile (default full; smoke checks this script in minutes).
 # Finished runs are kept in the repository without their checkpoints (eval/full_keep.py),
 # because a run outlives the machine it started on: before the first stage the kept runs
-# missing under OUT are restored (so they are skipped), and after every stage the finished
-# ones not kept yet are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
+# missing under OUT are restored (so they are skipped; one another simulator executed is
+# executed again), and after every stage the finished ones not kept yet, and the kept ones
+# executed again, are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
 # "none" keeps nothing). Commit what it adds there.
 set -uo pipefail
 # Everything runs inside main, called on the last line: bash parses the whole file before the

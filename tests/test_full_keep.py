@@ -92,6 +92,34 @@ def test_a_run_of_another_simulator_is_executed_again_not_trained(out, keep_mod,
     assert refreshed == [fresh / key]
     keep_mod.restore(keep, fresh, refresh=refreshed.append)  # still stale: again, not skipped
     assert refreshed == [fresh / key, fresh / key]
+    assert keep_mod.save(fresh, keep) == 0  # not executed by this simulator: kept as it was
+
+
+def test_a_kept_run_executed_again_is_archived_again(out, keep_mod, tmp_path, monkeypatch):
+    """Restored under another simulator and executed again, the run is archived again with
+    that simulator's results, so the next restore executes nothing; its training is as kept."""
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    keep_mod.save(out, keep)
+    (key,) = manifest = json.loads((keep / "MANIFEST.json").read_text())
+    monkeypatch.setattr(keep_mod, "sim_fingerprint", lambda: "another-simulator")
+
+    def executed_again(path: Path) -> None:  # what evaluate_run leaves: this simulator's mark
+        results = json.loads((path / "results.json").read_text())
+        results["sim"]["fingerprint"] = "another-simulator"
+        (path / "results.json").write_text(json.dumps(results))
+
+    fresh = tmp_path / "fresh"
+    keep_mod.restore(keep, fresh, refresh=executed_again)
+    assert keep_mod.save(fresh, keep) == 1
+    again = json.loads((keep / "MANIFEST.json").read_text())[key]
+    assert again["simulator"] == "another-simulator" != manifest[key]["simulator"]
+    assert (again["tasks"], again["train_cpu_s"]) == (manifest[key]["tasks"],
+                                                       manifest[key]["train_cpu_s"])
+    refreshed = []
+    keep_mod.restore(keep, tmp_path / "third", refresh=refreshed.append)
+    assert refreshed == []
+    assert keep_mod.save(fresh, keep) == 0  # current: nothing to do
 
 
 def test_a_tampered_archive_restores_nothing(out, keep_mod, tmp_path):
