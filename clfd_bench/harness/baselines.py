@@ -22,13 +22,18 @@ from clfd_bench.learning.part_config import ConfigError
 from clfd_bench.resources import resource_path
 
 __all__ = [
+    "DOC_KEYS",
     "SNODE_FILE",
     "SNODE_TABLE",
+    "TableSource",
     "baselines_file",
     "load_profile_table",
+    "profile_table",
+    "snode_profile_table",
+    "table_source",
 ]
 
-_DOC_KEYS = ("notes",)
+DOC_KEYS = ("notes",)
 SNODE_TABLE = "snode"
 """The table of a method's profile that applies to stable-NODE runs (``--node s``) only."""
 
@@ -43,7 +48,7 @@ SNODE_FILE = "snode.toml"
 
 
 @dataclass(frozen=True)
-class _Source:
+class TableSource:
     """Where a method's hyperparameters are read from. ``label`` is how messages name the
     file (``baselines/hn.toml`` for the built-ins, the path for a plugin's)."""
 
@@ -53,7 +58,7 @@ class _Source:
     label: str
 
 
-def _source(method: str, config_file: str | Path | None = None) -> _Source:
+def table_source(method: str, config_file: str | Path | None = None) -> TableSource:
     """The method's hyperparameter file: ``config_file`` if given, else the plugin class's
     own, else ``baselines/<name>.toml``."""
     from clfd_bench.methods import get_method_class, own_config_file
@@ -64,11 +69,11 @@ def _source(method: str, config_file: str | Path | None = None) -> _Source:
     else:
         path = own_config_file(cls)
     if path is None:
-        return _Source(method, cls.name, baselines_file(cls.name), f"baselines/{cls.name}.toml")
-    return _Source(method, cls.name, path, str(path))
+        return TableSource(method, cls.name, baselines_file(cls.name), f"baselines/{cls.name}.toml")
+    return TableSource(method, cls.name, path, str(path))
 
 
-def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:
+def _read_baselines(src: TableSource) -> tuple[Path, dict[str, Any]]:
     path = src.path
     if not path.is_file():
         fix = ("; pass --config PATH (a TOML with the tables of baselines/*.toml, see "
@@ -86,10 +91,10 @@ def _read_baselines(src: _Source) -> tuple[Path, dict[str, Any]]:
         raise ConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
-def _snode_profile(profile: str) -> tuple[dict[str, Any], _Source]:
+def snode_profile_table(profile: str) -> tuple[dict[str, Any], TableSource]:
     """The ``[profile]`` table of ``baselines/snode.toml`` (only stable-NODE keys and the
     solver/network keys it changes) and its source, for error messages."""
-    src = _Source("snode", "snode", baselines_file("snode"), f"baselines/{SNODE_FILE}")
+    src = TableSource("snode", "snode", baselines_file("snode"), f"baselines/{SNODE_FILE}")
     path, doc = _read_baselines(src)
     table = doc.get(profile)
     if not isinstance(table, dict):
@@ -102,10 +107,10 @@ def load_profile_table(method: str, profile: str,
                        config_file: str | Path | None = None) -> dict[str, Any]:
     """The raw ``[profile]`` table of the method's hyperparameter file (validated
     structure): ``baselines/<method>.toml``, or for a plugin ``config_file`` / its own."""
-    return _profile_table(_source(method, config_file), profile)
+    return profile_table(table_source(method, config_file), profile)
 
 
-def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
+def profile_table(src: TableSource, profile: str) -> dict[str, Any]:
     if profile not in PROFILES:
         raise ConfigError(f"unknown profile {profile!r}{suggest(profile, PROFILES)}; "
                           f"valid: {', '.join(PROFILES)}")
@@ -124,7 +129,7 @@ def _profile_table(src: _Source, profile: str) -> dict[str, Any]:
         raise ConfigError(f"{path} has no [{profile}] profile; it has: "
                           f"{', '.join(p for p in PROFILES if p in doc)}")
     table = doc[profile]
-    valid = {"defaults", SNODE_TABLE, *DATASET_TABLES, *_DOC_KEYS}
+    valid = {"defaults", SNODE_TABLE, *DATASET_TABLES, *DOC_KEYS}
     for key in table:
         if key not in valid:
             raise ConfigError(

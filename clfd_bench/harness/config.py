@@ -49,13 +49,13 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 from clfd_bench.harness.baselines import (
-    _DOC_KEYS,
+    DOC_KEYS,
     SNODE_FILE,
     SNODE_TABLE,
-    _profile_table,
-    _snode_profile,
-    _Source,
-    _source,
+    TableSource,
+    profile_table,
+    snode_profile_table,
+    table_source,
 )
 from clfd_bench.harness.run_config import (
     DATASET_TABLES,
@@ -117,7 +117,7 @@ class _Origin:
 
     kind: str  # "set" | "toml" | "default"
     text: str  # the --set text, or the table name below the profile ("fast.lasa")
-    source: _Source | None = None  # the file, when not the method's (baselines/snode.toml)
+    source: TableSource | None = None  # the file, when not the method's (baselines/snode.toml)
 
 
 def _toml_repr(value: Any) -> str:
@@ -145,7 +145,7 @@ def _toml_line(path: Path, table: str, key: str) -> int | None:
     return None
 
 
-def _where(src: _Source, key: str, origin: _Origin) -> str:
+def _where(src: TableSource, key: str, origin: _Origin) -> str:
     if origin.kind == "set":
         return f"--set {origin.text}"
     src = origin.source or src
@@ -153,7 +153,7 @@ def _where(src: _Source, key: str, origin: _Origin) -> str:
     return f"{src.label}{f' line {line}' if line else ''} [{origin.text}]"
 
 
-def _located(src: _Source, profile: str, key: str, origin: _Origin, problem: str,
+def _located(src: TableSource, profile: str, key: str, origin: _Origin, problem: str,
              part: str | None, profile_value: Any = None,
              rule: Rule | None = None) -> ConfigError:
     """The one-line error for a bad value: where it came from, what is wrong, the fix."""
@@ -180,7 +180,7 @@ def _located(src: _Source, profile: str, key: str, origin: _Origin, problem: str
     )
 
 
-def _position_tangent_scale(src: _Source, profile: str, dataset: str, source: str,
+def _position_tangent_scale(src: TableSource, profile: str, dataset: str, source: str,
                             is_pose: bool, value: float, origin: _Origin) -> ConfigError:
     """The error for a ``tangent_scale`` other than 1 on a position model."""
     shown = _toml_repr(value)
@@ -254,8 +254,8 @@ def resolve_config(
         if o_part is not None and not is_pose:
             raise ConfigError(f"--set {text}: {dataset} has one model (position); drop the "
                               f"'{o_part}.' prefix")
-    src = _source(method, config_file)
-    table = _profile_table(src, profile)
+    src = table_source(method, config_file)
+    table = profile_table(src, profile)
     source = dataset if dataset in table or dataset not in POSE_DATASETS else "robotasks"
     if source not in table:
         notes = table.get("notes", "")
@@ -275,7 +275,7 @@ def resolve_config(
         sources = {}
         snode_ds_layer: str | None = None  # the layer name of the dataset's sNODE table
         if node == "s":
-            shared, shared_src = _snode_profile(profile)
+            shared, shared_src = snode_profile_table(profile)
             layers.append((SNODE_FILE, shared))
             sources[SNODE_FILE] = shared_src
             own_snode = table.get(SNODE_TABLE, {})
@@ -311,7 +311,7 @@ def resolve_config(
                         else PARTS_POSE
                     raise ConfigError(f"{where}: unknown sub-table {key!r}"
                                       f"{suggest(key, valid)}; valid: {', '.join(valid)}")
-                if key in _DOC_KEYS:
+                if key in DOC_KEYS:
                     continue
                 if key not in PART_FIELDS and key not in own_rules:
                     known = [*PART_FIELDS, *own_rules]

@@ -26,10 +26,10 @@ from clfd_bench.runs import RunDir
 from clfd_bench.studies.inference_timing_measure import (
     DATASETS,
     METHODS,
-    _check_dataset,
-    _check_method,
     apply_eval_overrides,
     build_learner,
+    check_timing_dataset,
+    check_timing_method,
     load_run,
     measure_part,
     timed_parts,
@@ -143,9 +143,9 @@ def run_study(
     from clfd_bench.progress import progress
 
     for m in methods:
-        _check_method(m)
+        check_timing_method(m)
     for d in datasets:
-        _check_dataset(d)
+        check_timing_dataset(d)
     devices = tuple(devices or default_devices())
     for d in devices:
         if d not in ("cpu", "cuda"):

@@ -50,6 +50,8 @@ from clfd_bench.runs import RunDir
 
 __all__ = [
     "EVAL_KEYS",
+    "check_timing_dataset",
+    "check_timing_method",
     "apply_eval_overrides",
     "DATASETS",
     "METHODS",
@@ -119,7 +121,7 @@ class TimedPart:
         return self.part.kind
 
 
-def _check_method(method: str) -> None:
+def check_timing_method(method: str) -> None:
     if method not in METHODS:
         raise ValueError(
             f"the timing study times hypernetwork methods (NODE generation f_h -> f_theta); "
@@ -127,7 +129,7 @@ def _check_method(method: str) -> None:
         )
 
 
-def _check_dataset(dataset: str) -> None:
+def check_timing_dataset(dataset: str) -> None:
     if dataset not in DATASETS:
         raise ValueError(f"unknown dataset {dataset!r} for the timing study; valid: "
                          f"{', '.join(DATASETS)}")
@@ -167,8 +169,8 @@ def build_learner(
     normaliser fitted on its demos, as training would. Returns the learner and the tasks
     (order 0).
     """
-    _check_method(method)
-    _check_dataset(dataset)
+    check_timing_method(method)
+    check_timing_dataset(dataset)
     config = resolve_config(method, dataset, profile, seed=seed, node=node, overrides=overrides)
     ds = load_dataset(dataset, order=0)
     torch.manual_seed(seed)
@@ -197,8 +199,8 @@ def load_run(run_dir: str | os.PathLike[str],
         )
     learner, _header = load_learner(run.path, threads=threads)
     config: RunConfig = learner.config
-    _check_method(config.method)
-    _check_dataset(config.dataset)
+    check_timing_method(config.method)
+    check_timing_dataset(config.dataset)
     ds = load_dataset(config.dataset, order=config.order)
     return learner, list(ds.tasks[: learner.num_tasks])
 
