@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 import os
 from pathlib import Path
 
@@ -46,7 +47,7 @@ def pose_env_cls():
     return BarePoseEnv
 
 
-
+@functools.cache
 def _shares_a_fixture(path: Path) -> bool:
     """Whether the test file at `path` defines a module-, class- or package-scoped fixture."""
     try:
@@ -78,15 +79,9 @@ if LoadScopeScheduling is not None:
         free. (``--dist loadgroup`` with ``xdist_group`` marks would say the same, but on
         pytest 9.2 it silently stops grouping: pytest-xdist issue 1386.)"""
 
-        def __init__(self, config, log=None):
-            super().__init__(config, log)
-            self._shared: dict[str, bool] = {}
-
         def _split_scope(self, nodeid: str) -> str:
             module = nodeid.split("::", 1)[0]
-            if module not in self._shared:
-                self._shared[module] = _shares_a_fixture(self.config.rootpath / module)
-            return module if self._shared[module] else nodeid
+            return module if _shares_a_fixture(self.config.rootpath / module) else nodeid
 
     def pytest_xdist_make_scheduler(config, log):
         """`bash run.sh test` runs ``-n auto --dist loadscope``: schedule it by

@@ -81,8 +81,28 @@ def validate_plan(specs: list[RunSpec], out: Path) -> None:
         check_dataset(dataset, order)
 
 
+class RunCounts:
+    """`counts` for a result that has ``specs``, ``trained``, ``executed_again``, ``skipped``
+    and ``failed`` (`GridRun`, `LeaderboardResult`)."""
+
+    specs: list[RunSpec]
+    trained: list[RunSpec]
+    skipped: list[RunSpec]
+    failed: list[RunOutcome]
+    executed_again: list[RunSpec]
+
+    def counts(self) -> str:
+        """What the grid did, in words: "7 runs: 2 trained now, 5 executed again (trained
+        before), 0 already done, 0 failed"."""
+        run_now, again = len(self.trained), len(self.executed_again)
+        said = f", {again} executed again (trained before)" if again else ""
+        plural = "" if len(self.specs) == 1 else "s"
+        return (f"{len(self.specs)} run{plural}: {run_now - again} trained now{said}, "
+                f"{len(self.skipped)} already done, {len(self.failed)} failed")
+
+
 @dataclass
-class LeaderboardResult:
+class LeaderboardResult(RunCounts):
     """What a leaderboard call did: runs trained now, skipped as done, failed; files written."""
 
     specs: list[RunSpec]
@@ -93,11 +113,6 @@ class LeaderboardResult:
     files: list[Path]
     seconds: float
     executed_again: list[RunSpec] = field(default_factory=list)
-
-    def counts(self) -> str:
-        """What the grid did, in words (`GridRun.counts`)."""
-        return run_counts(len(self.specs), len(self.trained), len(self.executed_again),
-                          len(self.skipped), len(self.failed))
 
 
 def collect(specs: list[RunSpec], out: Path) -> list[RunRecord]:
@@ -170,7 +185,7 @@ def included_records(paths: list[Path], specs: list[RunSpec],
 
 
 @dataclass
-class GridRun:
+class GridRun(RunCounts):
     """What :func:`run_specs` did: runs run now (``trained``: trained, resumed or executed
     again), skipped as done, failed; final records. ``executed_again``: those of ``trained``
     whose training was finished before, which only executed their predictions again (e.g.
@@ -182,20 +197,6 @@ class GridRun:
     failed: list[RunOutcome]
     records: list[RunRecord]
     executed_again: list[RunSpec] = field(default_factory=list)
-
-    def counts(self) -> str:
-        """"7 runs: 2 trained now, 5 executed again (trained before), 0 already done,
-        0 failed"."""
-        return run_counts(len(self.specs), len(self.trained), len(self.executed_again),
-                          len(self.skipped), len(self.failed))
-
-
-def run_counts(runs: int, run_now: int, executed_again: int, skipped: int, failed: int) -> str:
-    """What a grid did, in words (`GridRun.counts`)."""
-    again = (f", {executed_again} executed again (trained before)" if executed_again else "")
-    plural = "" if runs == 1 else "s"
-    return (f"{runs} run{plural}: {run_now - executed_again} trained now{again}, {skipped} "
-            f"already done, {failed} failed")
 
 
 def run_specs(
