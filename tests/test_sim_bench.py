@@ -6,7 +6,7 @@ import argparse
 import json
 
 from clfd_bench.cli import bench_sim
-from clfd_bench.execution.bench import target_for
+from clfd_bench.execution.bench import RATIO_TARGET
 
 
 def test_bench_sim_json(capsys):
@@ -17,11 +17,10 @@ def test_bench_sim_json(capsys):
     assert row["env"] == "clfd/HelloWorld-r-v3" and row["success"] is True
     assert row["steps"] == 1060 and abs(row["sim_s"] - 1060 / 60) < 1e-9
     assert row["x_realtime"] > 1.0  # far slower than real time would mean something is broken
-    assert row["ik_us_per_step"] > 0 and row["physics_us_per_step"] > 0
+    assert row["ik_us"] > 0 and row["physics_us"] > 0
+    # the parts add up to the step, and the ratio is the step over physics + IK
+    assert abs(row["physics_us"] + row["ik_us"] + row["rest_us"] - row["step_us"]) < 1e-6
+    assert abs(row["ratio"] - row["step_us"] / (row["physics_us"] + row["ik_us"])) < 1e-9
+    assert row["ratio_target"] == RATIO_TARGET == 1.4
+    assert row["meets_target"] == (row["ratio"] <= 1.4)
     assert "CPUs" in out["machine"]
-
-
-def test_targets():
-    assert target_for("clfd/Pouring-v3") == 30.0
-    assert target_for("clfd/MatFolding-v3") == target_for("clfd/Scoop-v3") == 30.0
-    assert target_for("clfd/LASA-Angle-v3") == 50.0

@@ -49,6 +49,7 @@ Hooks for subclasses (all optional except those marked *):
   default: 7-D pose (+1 gripper command in [0, 1], 1 = closed, when `gripper_action`).
 - `_apply_gripper(cmd)`: default sets the Menagerie gripper actuator (1 = closed, 0 = open).
 - `_task_observation_space() -> dict[str, Space]` and `_task_obs() -> dict[str, ndarray]`.
+- `_on_command(action)`: the action reaches the controller (once per command, refused or not).
 - `_after_step()`: after the physics of each step (e.g. record ink, update attachments).
 - `_is_success(final: bool) -> bool`: `final` is True on the episode's last step and in
   `evaluate()`; cheap checks may ignore it, expensive ones may only run when it is True.
@@ -71,7 +72,6 @@ on unpickling. Envs are deterministic per seed (the only randomness is the demo 
 
 from __future__ import annotations
 
-import math
 import pathlib
 from typing import Any
 
@@ -80,14 +80,10 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from clfd_bench.sim.ik import PoseTracker, quat_angle
-from clfd_bench.sim.limits import (
-    CollisionMonitor,
-    MotionLimits,
-    MotionMonitor,
-    floor_height,
-    panda_limits,
-)
+from clfd_bench.envs.control import _BLOWUP_WARNINGS, CommandExecution, check_finite_action
+from clfd_bench.sim.collisions import CollisionMonitor, floor_height
+from clfd_bench.sim.ik import PoseTracker
+from clfd_bench.sim.limits import MotionLimits, MotionMonitor, panda_limits
 from clfd_bench.sim.render import CameraSpec, OffscreenRenderer
 from clfd_bench.sim.robot import (
     FINGER_OPEN,
@@ -110,11 +106,6 @@ CONTROL_HZ = 60.0
 #: the command; with 0.1 the same replays' joints stay under 1.3 rad/s and the 2× slower one
 #: within 5.5 mm. The hand's path is the same (the IK error stays under 0.5 mm either way).
 IK_POSTURE_GAIN = 0.1
-_BLOWUP_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQACC,
-)
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
@@ -126,16 +117,7 @@ def _resolve_limits(limits: str | MotionLimits | None) -> MotionLimits | None:
     raise ValueError(f"limits must be 'panda', a MotionLimits or None, got {limits!r}")
 
 
-def check_finite_action(action: np.ndarray) -> None:
-    """Raises ValueError naming the NaN/inf entries of `action`."""
-    bad = ~np.isfinite(action)
-    if bad.any():
-        idx = np.flatnonzero(bad).tolist()
-        raise ValueError(f"action has non-finite entries at indices {idx} (values "
-                         f"{action.reshape(-1)[bad.reshape(-1)].tolist()}); actions must be finite")
-
-
-class PandaEnv(gym.Env):
+class PandaEnv(CommandExecution, gym.Env):
     """Base class of the clfd-bench Panda environments (see the module docstring for the hooks).
 
     Args:
@@ -231,6 +213,8 @@ class PandaEnv(gym.Env):
         self._target_pos = np.zeros(3)
         self._target_quat = np.array([1.0, 0.0, 0.0, 0.0])
         self._warn_base = np.zeros(len(_BLOWUP_WARNINGS), dtype=int)
+        #: seconds spent in MuJoCo's physics steps since construction (`_drive`)
+        self.physics_s = 0.0
         self._reset_robot(0, HOME_QPOS)
 
     # ------------------------------------------------------------------ hooks (override)
@@ -392,7 +376,6 @@ class PandaEnv(gym.Env):
             raise ValueError(f"action must have shape {self.action_space.shape}, "
                              f"got {action.shape}")
         check_finite_action(action)
-        step = self._step_count
         if self._hold_q is not None:  # stopped after a failure: hold, ignore the command
             self._drive(self._hold_q)
             self._step_count += 1
@@ -400,39 +383,12 @@ class PandaEnv(gym.Env):
 
         pos, quat, grip = self._action_to_target(action)
         q_ref, ik_pe, ik_re = self.tracker.track(pos, quat)
-        self._target_pos = np.asarray(pos, dtype=float).copy()
-        self._target_quat = self.tracker._target_quat.copy()
-        self._ik_error = (ik_pe, ik_re)
+        pos = np.asarray(pos, dtype=float).copy()
+        quat = self.tracker._target_quat.copy()
         monitor = self.motion_monitor
-        refused = (monitor.check_command(self._target_pos, self._target_quat, q_ref)
-                   if monitor is not None else None)
-        if refused is not None:  # the controller refuses the command: the robot stops
-            self._fail(refused.reason, refused.as_dict())
-            self._drive(self._hold_q)
-        else:
-            if grip is not None:
-                self._apply_gripper(grip)
-            self._drive(q_ref)
-        self._step_count += 1
-
-        if self._failure_reason is None:
-            blowup = self._check_blowup(step)
-            if blowup is not None:
-                self._fail(blowup, {"kind": "blowup", "limit": "physics", "value": None,
-                                    "bound": None, "unit": "", "step": step})
-        if self._failure_reason is None:
-            hand = self.robot.hand_body
-            self._tracking_error = (
-                float(np.linalg.norm(self.data.xpos[hand] - self._target_pos)),
-                quat_angle(self.data.xquat[hand], self._target_quat))
-            if monitor is not None:
-                bad = (self.collision_monitor.check(self.data, step)
-                       or monitor.check_tracking(*self._tracking_error))
-                if bad is not None:
-                    self._fail(bad.reason, bad.as_dict())
-        if self._failure_reason is not None:
+        refused = monitor.check_command(pos, quat, q_ref) if monitor is not None else None
+        if self._execute_command(action, pos, quat, grip, q_ref, (ik_pe, ik_re), refused):
             return self._end_step(terminated=True)
-        self._after_step()
         truncated_now = self._step_count >= self.horizon
         self._last_success = bool(self._is_success(final=truncated_now))
         return self._end_step(terminated=False)
@@ -445,14 +401,6 @@ class PandaEnv(gym.Env):
         if self.render_mode == "rgb_array" and self._renderer is None:
             self._make_renderer()
         return obs, (1.0 if self._last_success else 0.0), terminated, truncated, self._info()
-
-    def _fail(self, reason: str, failure: dict[str, Any]) -> None:
-        """Ends the episode as a failure; the robot holds the configuration it is at now."""
-        self._failure_reason = reason
-        self._failure = failure
-        q = self.data.qpos[self.robot.arm_qpos]
-        self._hold_q = q.copy() if np.isfinite(q).all() else self._q_ref_prev.copy()
-        self._q_ref_prev = self._hold_q.copy()  # no feed-forward: the reference stands still
 
     def evaluate(self) -> dict[str, Any]:
         """Decides success now (as at the episode's end) and returns the info dict."""
@@ -495,33 +443,6 @@ class PandaEnv(gym.Env):
     # ------------------------------------------------------------------ internals
     def _make_renderer(self) -> None:
         self._renderer = OffscreenRenderer(self.model, self.width, self.height, self.camera())
-
-    def _drive(self, q_ref: np.ndarray) -> None:
-        """Runs the physics of one control period with the servo reference moving linearly from
-        the previous IK solution to `q_ref` [7], with velocity feed-forward."""
-        m, d, r = self.model, self.data, self.robot
-        q0 = self._q_ref_prev
-        dq = q_ref - q0
-        refs = q0 + self._substep_fractions[:, None] * dq + (r.arm_ctrl_tau / self.control_dt) * dq
-        np.maximum(refs, r.arm_ctrl_range[:, 0], out=refs)  # np.clip, at a fraction of its cost
-        np.minimum(refs, r.arm_ctrl_range[:, 1], out=refs)
-        ctrl = d.ctrl
-        act = r.arm_act_slice
-        for ref in refs:
-            ctrl[act] = ref
-            mujoco.mj_step(m, d)
-        self._q_ref_prev = np.array(q_ref, dtype=float)
-
-    def _check_blowup(self, step: int) -> str | None:
-        d = self.data
-        counts = [w.number for w in self._warn_stats]
-        new = [n > b for n, b in zip(counts, self._warn_base, strict=True)]
-        if not any(new) and math.isfinite(d.qpos @ d.qpos + d.qvel @ d.qvel):
-            return None
-        names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
-        what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"
-        return (f"physics blow-up at step {step} ({what}); the scene is unstable: "
-                "check the task MJCF (masses, solver settings, timestep)")
 
     def _get_obs(self) -> dict[str, np.ndarray]:
         hand = self.robot.hand_body

@@ -43,13 +43,8 @@ from clfd_bench.execution.limit_derivation import Calibration, RolloutMeasuremen
 from clfd_bench.execution.replay import replay_trajectory
 from clfd_bench.execution.rollout import DEFAULT_SETTLE_S, rollout
 from clfd_bench.sim import limits as L
-from clfd_bench.sim.limits import (
-    CollisionMonitor,
-    MotionLimits,
-    MotionMonitor,
-    Violation,
-    floor_height,
-)
+from clfd_bench.sim.collisions import CollisionMonitor, floor_height
+from clfd_bench.sim.limits import MotionLimits, MotionMonitor, Violation
 from clfd_bench.sim.robot import ROBOT_BODIES
 
 __all__ = ["FAMILIES", "CommandStream", "calibration_env", "calibration_env_ids", "grid_peaks",

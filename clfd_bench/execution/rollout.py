@@ -30,6 +30,8 @@ class RolloutResult:
         steps: number of env steps run (trajectory + settling).
         stopped_early: with `stop_when_decided`, the env's `decided_failure()` when the rollout
             stopped on it before the horizon, else None.
+        timing: lean rollouts: {"ik_s": seconds of IK, "physics_s": seconds in MuJoCo's
+            physics steps}; None when stepped through `env.step`.
     """
 
     success: bool
@@ -40,6 +42,7 @@ class RolloutResult:
     ee_path: np.ndarray
     steps: int
     stopped_early: dict[str, Any] | None = None
+    timing: dict[str, float] | None = None
 
 
 def _unwrap(env: gym.Env) -> PandaEnv:
@@ -51,7 +54,8 @@ def _unwrap(env: gym.Env) -> PandaEnv:
 
 def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
             settle_s: float = DEFAULT_SETTLE_S, record: bool = False, fps: float = 30.0,
-            seed: int | None = None, stop_when_decided: bool = False) -> RolloutResult:
+            seed: int | None = None, stop_when_decided: bool = False,
+            lean: bool | None = None) -> RolloutResult:
     """Runs `trajectory` through `env` at the data rate (one sample per 60 Hz step), then the
     env's settle actions for `settle_s` (RoboTasks: gripper opens; writing: pen holds), then
     decides success.
@@ -73,6 +77,11 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
             `info` then holds the partial episode's measures and `decided_failure`, and the
             failure kind is the task's even if the full rollout would have hit a motion limit
             later. Ignored with `record` (a video shows the whole rollout).
+        lean: drive the env's core directly (`PandaEnv.plan_commands`, `run_plan`: the IK
+            and the controller's checks for the whole stream first, then the physics; no
+            observation or info per step) instead of calling `env.step` per action. Same
+            verdicts, reasons and final state, to the last bit. None (default): lean unless
+            recording or the env is wrapped beyond Gymnasium's defaults (`plain_env`).
 
     Returns:
         A `RolloutResult`.
@@ -85,6 +94,41 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
         raise ValueError("record=True needs an env made with render_mode='rgb_array'")
     settle_steps = max(0, int(round(settle_s * CONTROL_HZ)))
     horizon = len(actions) + settle_steps
+    T = len(actions)
+    stop = stop_when_decided and not record
+    if lean is None:
+        lean = not record and plain_env(env)
+    if lean:
+        if record:
+            raise ValueError("lean=True does not render frames; pass lean=None to record")
+        stream = actions
+        if settle_steps:
+            stream = np.concatenate([actions, base.settle_actions(actions[-1], settle_steps)])
+        env.reset(seed=seed, options={"demo": demo, "horizon": horizon})
+        plan = base.plan_commands(stream)
+        run = base.run_plan(plan, stop_when_decided=stop)
+        steps, decided, frames = run.steps, run.decided, None
+        err_pos, err_rot = run.tracking[:T, 0].copy(), run.tracking[:T, 1].copy()
+        ee_path = run.ee_pos[:T].copy()
+        timing = {"ik_s": plan.ik_s, "physics_s": run.physics_s}
+    else:
+        steps, decided, frames, err_pos, err_rot, ee_path = _step_through(
+            env, base, actions, settle_steps, horizon, demo, seed, record, fps, stop)
+        timing = None
+    info = base.evaluate()
+    if decided is not None:
+        info["is_success"] = False  # decided: the full rollout's answer (the env's own too)
+        info["stopped_early"] = dict(decided, horizon=horizon, stopped_at=steps)
+    return RolloutResult(success=bool(info["is_success"]), tracking_error_pos=err_pos,
+                         tracking_error_rot=err_rot, info=info, frames=frames, ee_path=ee_path,
+                         steps=steps, stopped_early=decided, timing=timing)
+
+
+def _step_through(env: gym.Env, base: PandaEnv, actions: np.ndarray, settle_steps: int,
+                  horizon: int, demo: int | None, seed: int | None, record: bool, fps: float,
+                  stop: bool) -> tuple:
+    """The rollout through Gymnasium's `step`, one action at a time (wrappers see every
+    step). Returns (steps, decided, frames, err_pos [T], err_rot [T], ee_path [T, 3])."""
     env.reset(seed=seed, options={"demo": demo, "horizon": horizon})
     every = max(1, int(round(CONTROL_HZ / fps)))
     frames: list[np.ndarray] | None = [env.render()] if record else None
@@ -94,7 +138,6 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
     ee_path = np.full((T, 3), np.nan)
     steps = 0
     ended = False
-    stop = stop_when_decided and not record
     decided: dict[str, Any] | None = None
     for t in range(T):
         obs, _, terminated, truncated, info = env.step(actions[t])
@@ -119,10 +162,26 @@ def rollout(env: gym.Env, trajectory: np.ndarray, demo: int | None = None,
                 break
             if stop and (decided := base.decided_failure()) is not None:
                 break
-    info = base.evaluate()
-    if decided is not None:
-        info["is_success"] = False  # decided: the full rollout's answer (the env's own too)
-        info["stopped_early"] = dict(decided, horizon=horizon, stopped_at=steps)
-    return RolloutResult(success=bool(info["is_success"]), tracking_error_pos=err_pos,
-                         tracking_error_rot=err_rot, info=info, frames=frames, ee_path=ee_path,
-                         steps=steps, stopped_early=decided)
+    return steps, decided, frames, err_pos, err_rot, ee_path
+
+
+#: Wrappers that do not change what a step does (Gymnasium's defaults of `gym.make`).
+_PLAIN_WRAPPERS = (gym.wrappers.OrderEnforcing, gym.wrappers.PassiveEnvChecker)
+
+
+def plain_env(env: gym.Env) -> bool:
+    """Whether `rollout` may drive `env`'s core directly (`PandaEnv.plan_commands` /
+    `run_plan`) and give what stepping it gives: only Gymnasium's default wrappers around a
+    `PandaEnv` whose `step` and monitors are the library's own. Any other wrapper (e.g. a
+    tracer that records every step) or a replaced monitor gets `step` called per action."""
+    from clfd_bench.sim.collisions import CollisionMonitor
+    from clfd_bench.sim.limits import MotionMonitor
+
+    while isinstance(env, gym.Wrapper):
+        if type(env) not in _PLAIN_WRAPPERS:
+            return False
+        env = env.env
+    base = env
+    return (isinstance(base, PandaEnv) and type(base).step is PandaEnv.step
+            and type(base.motion_monitor) in (MotionMonitor, type(None))
+            and type(base.collision_monitor) in (CollisionMonitor, type(None)))

@@ -83,10 +83,18 @@ import functools
 import math
 from typing import Any
 
-import mujoco
 import numpy as np
 
-from clfd_bench.sim.robot import ARM_JOINTS, JOINT_VELOCITY_LIMITS, ROBOT_BODIES
+from clfd_bench.sim.command_math import (
+    CHANNELS,
+    derivatives,
+    filter_step,
+    filter_stream,
+    group_norms2,
+    rotation_increment,
+    stream_increments,
+)
+from clfd_bench.sim.robot import ARM_JOINTS, JOINT_VELOCITY_LIMITS
 
 #: Kinds of `Violation` (plus "blowup", which the env reports for an unstable physics state).
 KINDS = ("reflex", "tracking", "unreachable", "collision", "blowup")
@@ -331,18 +339,9 @@ class MotionMonitor:
         self._q_mid = 0.5 * (low + high)
         self._q_half = np.where(finite, 0.5 * (high - low), np.inf) + 1e-6
         self._reach2 = lim.max_reach ** 2
-        # Sums the squared [v (3), w (3), dq (7)] into [|v|², |w|², dq_1², ..., dq_7²].
-        self._group = np.zeros((13, 9))
-        self._group[0:3, 0] = 1.0
-        self._group[3:6, 1] = 1.0
-        self._group[6:13, 2:9] = np.eye(7)
         self._bounds2 = self._bounds_tol ** 2
-        # [velocity, acceleration, jerk] = _diff @ [increment, previous velocity, previous
-        # acceleration] (finite differences at the control rate).
-        r = self.rate
-        self._diff = np.array([[r, 0.0, 0.0], [r * r, -r, 0.0], [r ** 3, -r * r, -r]])
         self._v3 = np.empty(3)
-        self._du = np.zeros(13)
+        self._du = np.zeros(CHANNELS)
         self._peaks2 = np.zeros((3, 9))
         self.reset(np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(7))
 
@@ -353,10 +352,10 @@ class MotionMonitor:
         self._pos = np.asarray(pos, dtype=float).reshape(3).copy()
         self._quat = quat / np.linalg.norm(quat)
         self._q = np.asarray(q, dtype=float).reshape(7).copy()
-        self._stages = np.zeros((FILTER_STAGES, 13))  # filtered increments per stage
+        self._stages = np.zeros((FILTER_STAGES, CHANNELS))  # filtered increments per stage
         # Rows: the filtered increment of this step, the velocity and the acceleration of the
         # filtered command at the previous step.
-        self._hist = np.zeros((3, 13))
+        self._hist = np.zeros((3, CHANNELS))
         self._peaks2[:] = 0.0
         self.peak_reach = float(np.linalg.norm(self._pos - self.shoulder))
         self.lowest_height = float(self._pos[2])
@@ -386,57 +385,68 @@ class MotionMonitor:
         sx, sy, sz = self.shoulder
         reach2 = (px - sx) ** 2 + (py - sy) ** 2 + (z - sz) ** 2
         if reach2 > self._reach2 or z < self.floor_height:
-            return self._unreachable(math.sqrt(reach2), z)
+            return self._unreachable(math.sqrt(reach2), z, self.step)
         if (np.abs(q_ref - self._q_mid) > self._q_half).any():
-            return self._joint_range(q_ref)
+            return self._joint_range(q_ref, self.step)
         # Increments, filtered.
         du = self._du
         np.subtract(pos, self._pos, out=du[0:3])
-        mujoco.mju_subQuat(self._v3, quat, self._quat)  # rotation in the previous frame
-        mujoco.mju_rotVecQuat(du[3:6], self._v3, self._quat)  # ... in the world frame
+        rotation_increment(du[3:6], quat, self._quat, self._v3)
         np.subtract(q_ref, self._q, out=du[6:13])
-        stages = self._stages  # updated in place: after a violation, `reset` before reuse
-        x = du
-        for k in range(FILTER_STAGES):
-            stages[k] += self._gain * (x - stages[k])
-            x = stages[k]
+        x = filter_step(self._stages, du, self._gain)  # in place: `reset` after a violation
         # Velocity, acceleration, jerk of the filtered command.
         hist = self._hist
         hist[0] = x
-        d = self._diff @ hist  # [3, 13]
-        norms2 = (d * d) @ self._group  # [3, 9] squared norms
+        v, a, j = derivatives(x, hist[1], hist[2], self.rate)
+        norms2 = group_norms2(np.stack([v, a, j]))  # [3, 9] squared norms
         np.maximum(self._peaks2, norms2, out=self._peaks2)
         if (norms2 > self._bounds2).any():
-            return self._reflex(np.sqrt(norms2))
+            return self._reflex(np.sqrt(norms2), self.step)
         self.peak_reach = max(self.peak_reach, math.sqrt(reach2))
         self.lowest_height = min(self.lowest_height, z)
         self._pos[:] = pos
         self._quat[:] = quat
         self._q[:] = q_ref
-        hist[1:] = d[:2]
+        hist[1] = v
+        hist[2] = a
         self.step += 1
         return None
 
-    def _unreachable(self, reach: float, z: float) -> Violation:
-        if reach > self.limits.max_reach:
-            return Violation("unreachable", "reach", reach, self.limits.max_reach, "m",
-                             self.step)
-        return Violation("unreachable", "floor", z, self.floor_height, "m", self.step)
+    def check_stream(self, pos: np.ndarray, quat: np.ndarray, q_ref: np.ndarray
+                     ) -> StreamCheck:
+        """Checks a whole stream of commands at once, from the monitor's current state, with
+        the verdicts `check_command` gives when called on each command in turn (the same
+        arithmetic, `clfd_bench.sim.command_math`, so the same bits). The monitor itself does
+        not advance: apply `StreamCheck.monitor_state(n)` once `n` commands were executed.
 
-    def _joint_range(self, q_ref: np.ndarray) -> Violation:
+        Args:
+            pos: [T, 3] m, quat: [T, 4] w,x,y,z (unit), q_ref: [T, 7] rad.
+
+        Returns:
+            A `StreamCheck`: the first refused command (`refused_at`, `violation`) or None.
+        """
+        return check_stream(self, np.asarray(pos, dtype=float), np.asarray(quat, dtype=float),
+                            np.asarray(q_ref, dtype=float))
+
+    def _unreachable(self, reach: float, z: float, step: int) -> Violation:
+        if reach > self.limits.max_reach:
+            return Violation("unreachable", "reach", reach, self.limits.max_reach, "m", step)
+        return Violation("unreachable", "floor", z, self.floor_height, "m", step)
+
+    def _joint_range(self, q_ref: np.ndarray, step: int) -> Violation:
         for k, name in enumerate(ARM_JOINTS):
             q = float(q_ref[k])
             if q > self._q_high[k] + 1e-6:
                 return Violation("reflex", f"{name} position", q, float(self._q_high[k]),
-                                 "rad", self.step)
+                                 "rad", step)
             if q < self._q_low[k] - 1e-6:
                 return Violation("reflex", f"{name} position", q, float(self._q_low[k]),
-                                 "rad", self.step)
+                                 "rad", step)
         raise AssertionError("no joint out of range")  # pragma: no cover
 
     _ROWS = (("velocity", "s"), ("acceleration", "s^2"), ("jerk", "s^3"))
 
-    def _reflex(self, norms: np.ndarray) -> Violation:
+    def _reflex(self, norms: np.ndarray, step: int) -> Violation:
         """The first broken limit in the order velocity, acceleration, jerk; translation,
         rotation, joints 1..7."""
         row, col = np.argwhere(norms * norms > self._bounds2)[0]
@@ -448,7 +458,7 @@ class MotionMonitor:
         else:
             limit, unit = f"{ARM_JOINTS[col - 2]} {what}", f"rad/{per}"
         return Violation("reflex", limit, float(norms[row, col]), float(self.bounds[row, col]),
-                         unit, self.step)
+                         unit, step)
 
     def check_tracking(self, pos_err: float, rot_err: float) -> Violation | None:
         """The hand's error (m, rad) to the command just executed (call after the step's
@@ -483,83 +493,85 @@ class MotionMonitor:
         return out
 
 
-def floor_height(model: mujoco.MjModel) -> float:
-    """Height (m) of the scene's floor: the highest upward-facing plane geom fixed to the world
-    (the Menagerie floor at 0, lowered as a table in some scenes); -inf without one."""
-    planes = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
-                            & (model.geom_bodyid == 0))
-    heights = []
-    for g in planes:
-        mat = np.empty(9)
-        mujoco.mju_quat2Mat(mat, model.geom_quat[g])
-        if mat[8] > 0.999:  # the plane's normal (its z axis) points up
-            heights.append(float(model.geom_pos[g, 2]))
-    return max(heights) if heights else -math.inf
+@dataclasses.dataclass
+class StreamCheck:
+    """`MotionMonitor.check_stream`'s verdict on a command stream, and what the monitor needs
+    to continue after part of it ran.
 
-
-class CollisionMonitor:
-    """Contacts of the robot with the scene, and their forces.
-
-    Args:
-        model: the compiled scene.
-        robot_bodies: names of the robot's bodies whose contacts count (default: the Panda's
-            links, hand and fingers; a tool such as the pen, or a held prop, is not among them
-            and touches the scene by design).
-        force_bound: N, normal force summed over the contacts of one (robot body, other geom)
-            pair.
+    Attributes:
+        refused_at: index of the first command the controller refuses, or None.
+        violation: its `Violation` (step numbers count on from the monitor's), or None.
     """
 
-    def __init__(self, model: mujoco.MjModel, robot_bodies: tuple[str, ...] = ROBOT_BODIES,
-                 force_bound: float = COLLISION_FORCE):
-        self.model = model
-        self.force_bound = float(force_bound)
-        ids = []
-        for name in robot_bodies:
-            b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-            if b < 0:
-                raise ValueError(f"model has no body {name!r}")
-            ids.append(b)
-        self._is_robot = np.isin(model.geom_bodyid, ids)
-        self._force = np.zeros(6)
-        self.peak = 0.0
+    refused_at: int | None
+    violation: Violation | None
+    _monitor: MotionMonitor
+    _start: dict[str, Any]
+    _pos: np.ndarray
+    _quat: np.ndarray
+    _q: np.ndarray
+    _stages: np.ndarray  # [T, S, 13] the filter stages after each command
+    _vel: np.ndarray  # [T, 13]
+    _acc: np.ndarray  # [T, 13]
+    _norms2: np.ndarray  # [T, 3, 9]
+    _reach: np.ndarray  # [T]
+    _reflex: bool  # the refusal is a reflex (the filter saw the command)
 
-    def reset(self) -> None:
-        """Clears `peak` (the largest robot-scene pair force seen, N)."""
-        self.peak = 0.0
+    def monitor_state(self, executed: int) -> dict[str, Any]:
+        """The monitor's `state()` after `check_command` saw the first `executed` commands
+        (the refused one included when `executed > refused_at`): pass to `set_state`."""
+        accepted = executed if self.refused_at is None else min(executed, self.refused_at)
+        refused = self.refused_at is not None and executed > self.refused_at
+        state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._start.items()}
+        n = accepted
+        if n:
+            state.update(step=state["step"] + n, pos=self._pos[n - 1].copy(),
+                         quat=self._quat[n - 1].copy(), q=self._q[n - 1].copy(),
+                         stages=self._stages[n - 1].copy())
+            state["hist"] = np.stack([self._stages[n - 1, -1], self._vel[n - 1],
+                                      self._acc[n - 1]])
+            state["peaks2"] = np.maximum(state["peaks2"], self._norms2[:n].max(axis=0))
+            state["peak_reach"] = max(state["peak_reach"], float(self._reach[:n].max()))
+            state["lowest_height"] = min(state["lowest_height"], float(self._pos[:n, 2].min()))
+        if refused and self._reflex:  # the refused command went through the filter
+            k = self.refused_at
+            state["stages"] = self._stages[k].copy()
+            state["hist"][0] = self._stages[k, -1]
+            state["peaks2"] = np.maximum(state["peaks2"], self._norms2[k])
+        return state
 
-    def _geom_name(self, g: int) -> str:
-        m = self.model
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
-        if name:
-            return name
-        body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
-        return body or f"geom {g}"
 
-    def check(self, data: mujoco.MjData, step: int) -> Violation | None:
-        """A collision when, in the current contacts (those of the last physics step), the
-        (robot body, other geom) pair pushing hardest does so with more than `force_bound`;
-        else None. `step` is the step index to report."""
-        if data.ncon == 0:
-            return None
-        geom = data.contact.geom  # (ncon, 2)
-        robot = self._is_robot[geom]
-        if not robot.any():  # the usual case: no robot geom in contact
-            return None
-        hit = robot[:, 0] != robot[:, 1]
-        m, f = self.model, self._force
-        totals: dict[tuple[int, int], float] = {}
-        for i in np.flatnonzero(hit):
-            mujoco.mj_contactForce(m, data, int(i), f)
-            g1, g2 = int(geom[i, 0]), int(geom[i, 1])
-            rg, og = (g1, g2) if robot[i, 0] else (g2, g1)
-            key = (int(m.geom_bodyid[rg]), og)
-            totals[key] = totals.get(key, 0.0) + abs(float(f[0]))
-        if not totals:
-            return None
-        (body, other), force = max(totals.items(), key=lambda kv: kv[1])
-        self.peak = max(self.peak, force)
-        if force <= self.force_bound:
-            return None
-        who = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body)
-        return Violation("collision", "contact force", force, self.force_bound, "N", step,
-                         detail=f"{who} hit {self._geom_name(other)}")
+def check_stream(monitor: MotionMonitor, pos: np.ndarray, quat: np.ndarray, q: np.ndarray
+                 ) -> StreamCheck:
+    """`MotionMonitor.check_stream` (see there): pos [T, 3], quat [T, 4], q [T, 7]."""
+    m = monitor
+    start = m.state()
+    d = pos - m.shoulder
+    reach2 = d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2
+    raw_bad = (reach2 > m._reach2) | (pos[:, 2] < m.floor_height)
+    joint_bad = (np.abs(q - m._q_mid) > m._q_half).any(axis=1)
+    stages = filter_stream(stream_increments(pos, quat, q, start["pos"], start["quat"],
+                                             start["q"]), m._gain, start["stages"])
+    x = stages[:, -1]
+    hist = start["hist"]
+    vel, _, _ = derivatives(x, hist[1], hist[2], m.rate)
+    vel_prev = np.concatenate([hist[1][None], vel[:-1]])
+    _, acc, _ = derivatives(x, vel_prev, hist[2], m.rate)
+    acc_prev = np.concatenate([hist[2][None], acc[:-1]])
+    _, _, jerk = derivatives(x, vel_prev, acc_prev, m.rate)
+    norms2 = group_norms2(np.stack([vel, acc, jerk], axis=1))  # [T, 3, 9]
+    reflex_bad = (norms2 > m._bounds2).any(axis=(1, 2))
+    bad = np.flatnonzero(raw_bad | joint_bad | reflex_bad)
+    refused_at = int(bad[0]) if bad.size else None
+    violation = None
+    if refused_at is not None:
+        k, step = refused_at, m.step + refused_at
+        if raw_bad[k]:
+            violation = m._unreachable(math.sqrt(reach2[k]), float(pos[k, 2]), step)
+        elif joint_bad[k]:
+            violation = m._joint_range(q[k], step)
+        else:
+            violation = m._reflex(np.sqrt(norms2[k]), step)
+    reflex = refused_at is not None and not raw_bad[refused_at] and not joint_bad[refused_at]
+    return StreamCheck(refused_at, violation, m, start, pos, quat, q, stages, vel, acc, norms2,
+                       np.sqrt(reach2), reflex)

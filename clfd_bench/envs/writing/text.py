@@ -158,8 +158,10 @@ class HelloWorldTextEnv(WritingBase):
                           ) -> tuple[np.ndarray, np.ndarray, float | None]:
         xy = np.minimum(np.maximum(action[:2], self._low), self._high)
         lift = float(np.clip(action[2], 0.0, 1.0))
-        self._commanded_down.append(lift < PEN_DOWN_LIFT)
         return self.hand_target(xy, lift), self._hand_quat, None
+
+    def _on_command(self, action: np.ndarray) -> None:
+        self._commanded_down.append(float(np.clip(action[2], 0.0, 1.0)) < PEN_DOWN_LIFT)
 
     def trajectory_to_actions(self, trajectory: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
         """Per-letter trajectories (list of [T_k, 2] or [L, T, 2], data units, one per letter
