@@ -171,7 +171,8 @@ class PandaEnv(CommandExecution, gym.Env):
         self.model.opt.timestep = self.control_dt / self.n_substeps
         self.data = mujoco.MjData(self.model)
         #: live views of the blow-up warning counters (read every step)
-        self._warn_stats = tuple(self.data.warning[int(w)] for w in _BLOWUP_WARNINGS)
+        self._warn_numbers = self.data.warning.number
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self.robot = RobotIndex(self.model)
         self.tracker = PoseTracker(robot_model(self.tool), iterations=ik_iterations,
                                    dt=self.control_dt / ik_iterations,

@@ -30,6 +30,7 @@ _BLOWUP_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
+_BLOWUP_INDEX = np.array([int(w) for w in _BLOWUP_WARNINGS])
 
 
 def check_finite_action(action: np.ndarray, step: int | None = None) -> None:
@@ -57,7 +58,7 @@ class CommandPlan:
         check: the controller's verdict on the stream (None with the limits off).
         refs: [N, S, 7] the servo reference of every physics substep, valid up to the first
             failure (afterwards the robot holds).
-        ik_s: seconds the IK took.
+        ik_s: seconds the IK took (`PoseTracker.track` alone).
     """
 
     actions: np.ndarray
@@ -134,11 +135,12 @@ class CommandExecution:
             return True
         d = self.data
         hand = self.robot.hand_body
-        self._tracking_error = (float(np.linalg.norm(d.xpos[hand] - pos)),
-                                quat_angle(d.xquat[hand], quat))
+        diff = d.xpos[hand] - pos
+        # = np.linalg.norm(diff) (which computes exactly this), without its dispatch
+        self._tracking_error = (math.sqrt(diff.dot(diff)), quat_angle(d.xquat[hand], quat))
         if self.motion_monitor is not None:
             bad = (self.collision_monitor.check(d, step)
-                   or self.motion_monitor.check_tracking(*self._tracking_error))
+                   or self.motion_monitor.check_tracking(*self._tracking_error, step))
             if bad is not None:
                 self._fail(bad.reason, bad.as_dict())
                 return True
@@ -149,7 +151,8 @@ class CommandExecution:
         """Runs the physics of one control period with the servo reference moving linearly from
         the previous IK solution to `q_ref` [7], with velocity feed-forward (`refs` [S, 7]: the
         substeps' references when already computed, `_substep_refs`)."""
-        if refs is None:
+        refs_given = refs is not None  # the plan's: its q_ref rows are not written to
+        if not refs_given:
             refs = self._substep_refs(self._q_ref_prev[None], np.asarray(q_ref)[None])[0]
         m, d = self.model, self.data
         ctrl = d.ctrl
@@ -159,7 +162,7 @@ class CommandExecution:
             ctrl[act] = ref
             mujoco.mj_step(m, d)
         self.physics_s += time.perf_counter() - t0
-        self._q_ref_prev = np.array(q_ref, dtype=float)
+        self._q_ref_prev = q_ref if refs_given else np.array(q_ref, dtype=float)
 
     def _substep_refs(self, q_prev: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
         """Servo references [N, S, 7] of the substeps from `q_prev` [N, 7] to `q_ref` [N, 7]:
@@ -182,10 +185,9 @@ class CommandExecution:
         self._q_ref_prev = self._hold_q.copy()  # no feed-forward: the reference stands still
 
     def _check_blowup(self, step: int) -> str | None:
-        d = self.data
-        counts = [w.number for w in self._warn_stats]
-        new = [n > b for n, b in zip(counts, self._warn_base, strict=True)]
-        if not any(new) and math.isfinite(d.qpos @ d.qpos + d.qvel @ d.qvel):
+        new = self._warn_numbers[_BLOWUP_INDEX] > self._warn_base
+        q, v = self._qpos, self._qvel  # live views of the state
+        if not new.any() and math.isfinite(q @ q + v @ v):
             return None
         names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
         what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"
@@ -216,10 +218,13 @@ class CommandExecution:
         tracker_q = np.empty((n, len(tracker.configuration.q)))
         grips: list[float | None] = []
         raw = []
-        t0 = time.perf_counter()
+        ik_s = 0.0
+        clock = time.perf_counter
         for t in range(n):
             p, qt, g = self._action_to_target(actions[t])
+            t0 = clock()
             q, pe, re = tracker.track(p, qt)
+            ik_s += clock() - t0
             pos[t] = p
             quat[t] = tracker._target_quat
             self._target_quat = quat[t]  # a zero quaternion keeps the last (the default hook)
@@ -228,7 +233,6 @@ class CommandExecution:
             tracker_q[t] = tracker.configuration.q
             grips.append(g)
             raw.append((p, qt))
-        ik_s = time.perf_counter() - t0
         check = (self.motion_monitor.check_stream(pos, quat, q_ref)
                  if self.motion_monitor is not None else None)
         q_prev = np.concatenate([self._q_ref_prev[None], q_ref[:-1]])
@@ -247,17 +251,16 @@ class CommandExecution:
         hand_pos = self.data.xpos[self.robot.hand_body]  # a live view
         ee = np.full((n, 3), np.nan)
         tracking = np.full((n, 2), np.nan)
-        grip = plan.grip
+        grips = [None] * n if plan.grip is None else plan.grip.tolist()
+        ik_errors = [tuple(e) for e in plan.ik_error.tolist()]
         decided = None
         ended = False
         steps = 0
         physics0 = self.physics_s
         for t in range(n):
             failed = self._execute_command(
-                plan.actions[t], plan.pos[t], plan.quat[t],
-                None if grip is None else float(grip[t]), plan.q_ref[t],
-                (float(plan.ik_error[t, 0]), float(plan.ik_error[t, 1])),
-                check.violation if t == refused_at else None, plan.refs[t])
+                plan.actions[t], plan.pos[t], plan.quat[t], grips[t], plan.q_ref[t],
+                ik_errors[t], check.violation if t == refused_at else None, plan.refs[t])
             steps += 1
             ee[t] = hand_pos
             tracking[t] = self._tracking_error

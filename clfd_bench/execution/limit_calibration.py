@@ -152,9 +152,10 @@ class _RecordingMotionMonitor(MotionMonitor):
         self.commands.append(np.concatenate([pos, quat, q_ref]))
         return super().check_command(pos, quat, q_ref)
 
-    def check_tracking(self, pos_err: float, rot_err: float) -> Violation | None:
+    def check_tracking(self, pos_err: float, rot_err: float, step: int | None = None
+                       ) -> Violation | None:
         self.tracking.append((float(pos_err), float(rot_err)))
-        return super().check_tracking(pos_err, rot_err)
+        return super().check_tracking(pos_err, rot_err, step)
 
     def stream(self) -> CommandStream:
         c = np.asarray(self.commands, dtype=float).reshape(-1, 14)

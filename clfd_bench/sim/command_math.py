@@ -55,8 +55,16 @@ def filter_stream(x: np.ndarray, gain: np.ndarray, stages0: np.ndarray) -> np.nd
     """
     out = np.empty((len(x), len(stages0), x.shape[1]))
     stages = stages0.copy()
+    rows = list(stages)  # views of each stage's row
+    tmp = np.empty(x.shape[1])
+    sub, mul, add = np.subtract, np.multiply, np.add
     for t in range(len(x)):
-        filter_step(stages, x[t], gain)
+        xt = x[t]
+        for st in rows:  # `filter_step`'s operations, into preallocated arrays
+            sub(xt, st, out=tmp)
+            mul(gain, tmp, out=tmp)
+            add(st, tmp, out=st)
+            xt = st
         out[t] = stages
     return out
 

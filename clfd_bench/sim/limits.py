@@ -460,10 +460,12 @@ class MotionMonitor:
         return Violation("reflex", limit, float(norms[row, col]), float(self.bounds[row, col]),
                          unit, step)
 
-    def check_tracking(self, pos_err: float, rot_err: float) -> Violation | None:
+    def check_tracking(self, pos_err: float, rot_err: float, step: int | None = None
+                       ) -> Violation | None:
         """The hand's error (m, rad) to the command just executed (call after the step's
-        physics; the step index is that of the last accepted command)."""
-        step = self.step - 1
+        physics). `step`: the step index to report (default: that of the last command
+        `check_command` accepted)."""
+        step = self.step - 1 if step is None else step
         lim = self.limits
         if pos_err > lim.tracking_position:
             return Violation("tracking", "position error", float(pos_err),

@@ -131,6 +131,15 @@ class RoboTaskEnv(PandaEnv):
         ok, self._scene_info = self.scene.success(self.data, self.grasp)
         return ok
 
+    def evaluate(self) -> dict[str, Any]:
+        """As `PandaEnv.evaluate`; a failed episode (a motion limit, a collision) reports the
+        scene's measures and checks as they stand at its end, not as the last step before the
+        failure left them (they are the same for a stepped and a planned rollout, which does
+        not judge every step)."""
+        if self._failure_reason is not None:
+            _, self._scene_info = self.scene.success(self.data, self.grasp)
+        return super().evaluate()
+
     def _task_info(self) -> dict[str, Any]:
         info = {"task": self.task_name, "held": self.grasp.held(self.data),
                 "release_reason": self.grasp.release_reason,

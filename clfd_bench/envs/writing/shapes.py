@@ -106,14 +106,16 @@ class ShapeEnv(WritingBase):
             return
         step = len(self._ink_flags) - 1
         if self._ink_flags[-1]:
+            # checked in batches, when someone asks (`decided_failure`, the final decision)
             self._pending.append((step, self._ink_xy[-1]))
-            if len(self._pending) >= DECIDE_BATCH:
-                self._check_pending()
             return
         # At the horizon the ink fraction is inked / horizon <= (horizon - off) / horizon.
         self._off_board += 1
         h, least = self.horizon, self.wspec.min_ink_fraction
         if (h - self._off_board) / h < least:
+            self._check_pending()  # a batch that completed earlier decides first
+            if self._early is not None:
+                return
             self._early = {
                 "check": "ink_fraction", "step": step, "value": (h - self._off_board) / h,
                 "bound": least,
@@ -121,14 +123,20 @@ class ShapeEnv(WritingBase):
                           f"{h} steps by step {step}: the ink fraction stays below {least:g}"}
 
     def _check_pending(self) -> None:
-        """Checks the pending ink points against the target: the criterion's Hausdorff distance
-        is at least the distance of any ink point to the target, so one point beyond the
-        tolerance decides the failure."""
+        """Checks the pending ink points of every complete batch of `DECIDE_BATCH` inked steps
+        against the target: the criterion's Hausdorff distance is at least the distance of any
+        ink point to the target, so one point beyond the tolerance decides the failure. The
+        batches are checked together (one k-d tree query) but decide as if each had been
+        checked at the step that completed it: the first point beyond the tolerance, in step
+        order, is the decision; a later point or batch never overrides it."""
         from scipy.spatial import cKDTree
 
-        steps = [k for k, _ in self._pending]
-        points = self.to_data(np.array([xy for _, xy in self._pending]))
-        self._pending = []
+        done = len(self._pending) - len(self._pending) % DECIDE_BATCH
+        if self._early is not None or not done:
+            return
+        batch, self._pending = self._pending[:done], self._pending[done:]
+        steps = [k for k, _ in batch]
+        points = self.to_data(np.array([xy for _, xy in batch]))
         tree = self._trees.get(self.demo)
         if tree is None:
             tree = self._trees[self.demo] = cKDTree(self.target())
@@ -149,6 +157,7 @@ class ShapeEnv(WritingBase):
         as ink is added; checked in batches of `DECIDE_BATCH` inked steps), or so many steps
         with the pen off the board that the ink fraction at the horizon stays below
         `min_ink_fraction`. See `PandaEnv.decided_failure`."""
+        self._check_pending()
         return None if self._early is None else dict(self._early)
 
     def _task_state(self) -> dict[str, Any]:
@@ -163,6 +172,7 @@ class ShapeEnv(WritingBase):
         self._early = state["early"]
 
     def _decide(self) -> dict[str, Any]:
+        self._check_pending()  # as if each batch had been checked when it completed
         frac = self._ink_fraction()
         out = judge_shape(self.to_data(self.ink_trace()), self.to_data(self.pen_path()),
                           self.target(), self.goal, self.tolerances, self.dtw_threshold,
