@@ -195,12 +195,9 @@ class CommandExecution:
                 "check the task MJCF (masses, solver settings, timestep)")
 
     # ------------------------------------------------------------------ a planned stream
-    def plan_commands(self, actions: np.ndarray) -> CommandPlan:
-        """Turns actions [N, A] into commands from the current state (normally right after
-        `reset`): the targets, the IK's joint references and the controller's verdict on the
-        whole stream. Moves the IK tracker through the stream; `run_plan` leaves it where
-        executing the same actions with `step` would. Raises ValueError for a wrong shape or a
-        non-finite action (naming its step) before anything runs."""
+    def check_actions(self, actions: np.ndarray) -> np.ndarray:
+        """`actions` [N, A] as float64, or ValueError for a wrong shape or a non-finite action
+        (naming its step and entries)."""
         actions = np.asarray(actions, dtype=np.float64)
         shape = self.action_space.shape
         if actions.ndim != 2 or actions.shape[1:] != shape:
@@ -209,6 +206,15 @@ class CommandExecution:
         if not finite.all():
             t = int(np.flatnonzero(~finite)[0])
             check_finite_action(actions[t], t)
+        return actions
+
+    def plan_commands(self, actions: np.ndarray) -> CommandPlan:
+        """Turns actions [N, A] into commands from the current state (normally right after
+        `reset`): the targets, the IK's joint references and the controller's verdict on the
+        whole stream. Moves the IK tracker through the stream; `run_plan` leaves it where
+        executing the same actions with `step` would. Raises ValueError for a wrong shape or a
+        non-finite action (naming its step) before anything runs."""
+        actions = self.check_actions(actions)
         if self._hold_q is not None:
             raise RuntimeError("the episode already failed; call reset() before planning")
         n = len(actions)
