@@ -256,15 +256,20 @@ class Scene:
 def first_toucher(model: mujoco.MjModel, data: mujoco.MjData, targets: np.ndarray,
                   ignore: np.ndarray) -> str | None:
     """The body (name) of the first geom in contact (touching or penetrating) with a geom of
-    `targets`, skipping geoms of `ignore` (both boolean masks [ngeom]); None if there is none."""
+    `targets`, skipping geoms of `ignore` (both boolean masks [ngeom]); None if there is none.
+    (Scenes call it every control step until it finds one: the common answer, no contact with
+    a target at all, takes one lookup of the contacts' geom pairs.)"""
     if data.ncon == 0:
         return None
-    g1, g2 = data.contact.geom1, data.contact.geom2
-    on = targets[g1] | targets[g2]
-    if not on.any():
+    contact = data.contact
+    pairs = contact.geom  # [ncon, 2]: geom1, geom2
+    on_pair = targets[pairs]
+    if not on_pair.any():
         return None
-    other = np.where(targets[g1], g2, g1)
-    hit = on & ~ignore[other] & (data.contact.dist <= 0.0)
+    g1, g2 = pairs[:, 0], pairs[:, 1]
+    on = on_pair[:, 0] | on_pair[:, 1]
+    other = np.where(on_pair[:, 0], g2, g1)
+    hit = on & ~ignore[other] & (contact.dist <= 0.0)
     if not hit.any():
         return None
     g = int(other[np.flatnonzero(hit)[0]])

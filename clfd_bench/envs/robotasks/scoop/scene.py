@@ -110,6 +110,7 @@ class ScoopScene(Scene):
         #: radius under the surface; `_taken` [nx, ny, nz] marks the grains already gone.
         self._spacing = float(s.get("grain_spacing", 2 * r + 0.001))
         self._origin = np.array([x0 + r, y0 + r, float(s["bin_floor_z"]) + r])
+        self._origin_list = self._origin.tolist()
         top = np.array([x1 - r, y1 - r, self._surface - r])
         self._shape = tuple(int(v) for v in np.floor((top - self._origin) / self._spacing) + 1)
         #: where the beans wait in the pool (world) [n_beans, 3]: far under the room's floor.
@@ -129,18 +130,56 @@ class ScoopScene(Scene):
         self._is_bin_geom[self.bin_geoms] = True
         self._is_bean_geom = np.zeros(model.ngeom, dtype=bool)
         self._is_bean_geom[self.bean_geoms] = True
+        # The boxes' faces as `_in_box` computes them (box[0] - pad, box[1] + pad: the same
+        # values), once: [3] low and high corners, scoop frame.
+        self._cav_lo, self._cav_hi = self._cavity[0] - 0.0, self._cavity[1] + 0.0
+        self._out_lo, self._out_hi = self._outer[0] - 0.0, self._outer[1] + 0.0
+        self._bowl_box = ((self._cavity[0] - r).tolist(), (self._cavity[1] + r).tolist())
+        #: whether the cavity lies within the bowl's outside box: then a site outside the
+        #: outside box is in neither, and a step whose sites are all outside it changes nothing.
+        self._nested = bool(np.all(self._cavity[0] >= self._outer[0])
+                            and np.all(self._cavity[1] <= self._outer[1]))
+        #: a bean below this height (world z) may rejoin the bin or be spilled; above it not.
+        self._settle_z = max(self._surface, self._rim)
+        #: the grain sites (world) [nx, ny, nz, 3]: origin + (i, j, k) * spacing, the same
+        #: expression (and bits) as the sites of lattice indices computed one by one.
+        self._grid = self._origin + np.moveaxis(np.indices(self._shape), 0, -1) * self._spacing
+        #: (pose, lowest z, bounds or None) of the pose `_prev` holds (see `_pose_low`).
+        self._prev_cache: tuple[Any, float, list[float] | None] | None = None
+        #: (indices, body ids) of the active beans not spilled, None when to be recomputed.
+        self._live: tuple[np.ndarray, np.ndarray] | None = None
+        self._view_data: mujoco.MjData | None = None
 
-    def _sites_near(self, poses: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-        """[K, 3] lattice indices of the grains not yet taken within the bounding box of the
-        bowl's outside at `poses` (scoop position [3], rotation [3, 3])."""
-        pts = np.concatenate([p + self._outer_corners @ rot.T for p, rot in poses])
-        lo = np.ceil((pts.min(0) - self._origin) / self._spacing).astype(int)
-        hi = np.floor((pts.max(0) - self._origin) / self._spacing).astype(int) + 1
-        lo, hi = np.maximum(lo, 0), np.minimum(hi, self._shape)
-        if np.any(hi <= lo):
-            return np.zeros((0, 3), dtype=int)
-        block = ~self._taken[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
-        return np.argwhere(block) + lo
+    def _pose_low(self, pos: np.ndarray, rot: np.ndarray) -> float:
+        """The lowest z (world) of the bowl's outside box with the scoop at `pos` [3], `rot`
+        [3, 3]."""
+        return pos[2] + (self._outer_corners @ rot[2]).min()
+
+    def _pose_bounds(self, pos: np.ndarray, rot: np.ndarray) -> list[float]:
+        """The world bounding box of the bowl's outside box with the scoop at `pos` [3], `rot`
+        [3, 3]: [6] floats, low corner then high corner."""
+        pts = pos + self._outer_corners @ rot.T
+        return pts.min(0).tolist() + pts.max(0).tolist()
+
+    def _block(self, a: list[float], b: list[float]) -> tuple[slice, slice, slice] | None:
+        """The lattice block (index slices) of the sites within the world bounding box of the
+        bowl's outside at two poses (`_pose_bounds` `a`, `b`), or None when it is empty."""
+        lo_pt = [min(a[0], b[0]), min(a[1], b[1]), min(a[2], b[2])]
+        hi_pt = [max(a[3], b[3]), max(a[4], b[4]), max(a[5], b[5])]
+        o, s, shape = self._origin_list, self._spacing, self._shape
+        if all(-1e6 < v < 1e6 for v in a + b):
+            # numpy's ceil((p - origin) / spacing) on floats: the same IEEE operations, with
+            # exact integer results
+            lo = [max(math.ceil((lo_pt[k] - o[k]) / s), 0) for k in range(3)]
+            hi = [min(math.floor((hi_pt[k] - o[k]) / s) + 1, shape[k]) for k in range(3)]
+        else:  # not finite (or absurd): numpy's casts and NaN propagation
+            pts = np.array([a, b]).reshape(2, 2, 3)
+            lo = np.ceil((np.minimum(pts[0, 0], pts[1, 0]) - self._origin) / s).astype(int)
+            hi = np.floor((np.maximum(pts[0, 1], pts[1, 1]) - self._origin) / s).astype(int) + 1
+            lo, hi = np.maximum(lo, 0).tolist(), np.minimum(hi, shape).tolist()
+        if hi[0] <= lo[0] or hi[1] <= lo[1] or hi[2] <= lo[2]:
+            return None
+        return slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(lo[2], hi[2])
 
     # -- the pool
     def _set_active(self, i: int, active: bool) -> None:
@@ -152,6 +191,7 @@ class ScoopScene(Scene):
         m.geom_contype[g] = m.geom_conaffinity[g] = 1 if active else 0
         m.body_contype[b] = m.body_conaffinity[b] = 1 if active else 0
         self._active[i] = active
+        self._live = None
 
     def _park(self, data: mujoco.MjData, i: int) -> None:
         self._set_active(i, False)
@@ -192,6 +232,7 @@ class ScoopScene(Scene):
             self._park(data, i)
         self._taken[:] = False
         self._spilled[:] = False
+        self._live = None
         self._prev = None
 
     def start_record(self, data: mujoco.MjData, grasp: Grasp) -> None:
@@ -201,76 +242,155 @@ class ScoopScene(Scene):
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
         """Takes the grains the bowl sweeps up, returns the beans that fall back into the bin,
         counts the ones that land outside it, and notes the first thing other than a bean that
-        touches the bin."""
+        touches the bin.
+
+        Runs every control step, so it skips what cannot change anything (each skip is exact:
+        what it skips would have found nothing): the grain lattice while the bowl is above
+        the beans; the grains' cavity and entry tests when no grain is inside the bowl's
+        outside box (the cavity lies within it); the active beans' tests while none is below
+        the bin's rim and surface. The previous pose's values are kept, not recomputed."""
         rec = self.record
-        changed = False
-        pos = data.xpos[self.scoop].copy()
-        rot = data.xmat[self.scoop].reshape(3, 3).copy()
-        prev_pos, prev_rot = self._prev if self._prev is not None else (pos, rot)
-        c = self._outer_corners
-        low = min(pos[2] + (c @ rot[2]).min(), prev_pos[2] + (c @ prev_rot[2]).min())
-        near = (self._sites_near([(pos, rot), (prev_pos, prev_rot)])
-                if low < self._surface else ())  # the bowl reaches into the beans
-        if len(near):
-            sites = self._origin + near * self._spacing
-            local = (sites - pos) @ rot
-            prev = (sites - prev_pos) @ prev_rot
-            inside = self._in_box(local, self._cavity)
-            entered = inside & ~self._in_box(prev, self._cavity)
-            solid = self._in_box(local, self._outer) & ~inside
-            self._taken[tuple(near[solid].T)] = True  # pushed aside by the bowl's outside
-            ks = np.flatnonzero(entered)
-            if len(ks):
-                self._taken[tuple(near[ks].T)] = True
-                pooled = list(np.flatnonzero(~self._active & ~self._spilled))
-                if not pooled:
-                    rec["pool_empty"] += len(ks)  # the scoop already holds every bean
-                    ks = ks[:0]
-            if len(ks):
-                vel = np.empty(6)
-                mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY,
-                                         self.scoop, vel, 0)
-                beans = [data.xpos[b].copy() for b in self.bean_ids[self._active]]
-                for k in ks:
-                    if not self._through_opening(prev[k], local[k]):
-                        continue  # pushed in through a wall: displaced
-                    site = sites[k]
-                    if beans and np.min(np.linalg.norm(np.asarray(beans) - site, axis=1)
-                                        ) < 2 * self.bean_radius:
-                        continue  # the bowl is full here
-                    if not pooled:
-                        rec["pool_empty"] += 1
-                        continue
-                    v = vel[3:] + np.cross(vel[:3], site - pos)
-                    self._spawn(data, int(pooled.pop(0)), site, v)
-                    beans.append(site)
-                    rec["scooped"] += 1
-                    changed = True
+        if self._view_data is not data:
+            self._scoop_pos = data.xpos[self.scoop]
+            self._scoop_rot = data.xmat[self.scoop].reshape(3, 3)
+            self._view_data = data
+        pos = self._scoop_pos.copy()
+        rot = self._scoop_rot.copy()
+        low_now = self._pose_low(pos, rot)
+        bounds_now = None
+        if self._prev is None:
+            prev_pos, prev_rot, low_prev = pos, rot, low_now
+        else:
+            prev_pos, prev_rot = self._prev
+            low_prev = self._prev_values()[1]
+        if min(low_now, low_prev) < self._surface:  # the bowl reaches into the beans
+            bounds_now = self._pose_bounds(pos, rot)
+            bounds_prev = bounds_now if self._prev is None else self._prev_bounds()
+            block = self._block(bounds_now, bounds_prev)
+            if block is not None and self._sweep(data, rec, block, pos, rot, prev_pos,
+                                                 prev_rot):
+                mujoco.mj_kinematics(self.model, data)
         self._prev = (pos, rot)
-        if changed:
-            mujoco.mj_kinematics(self.model, data)
-            changed = False
+        self._prev_cache = (self._prev, low_now, bounds_now)
         # beans that fell back into the bin's contents, or out of the bin
-        act = np.flatnonzero(self._active & ~self._spilled)
-        if len(act):
-            p = data.xpos[self.bean_ids[act]]
-            x0, x1, y0, y1 = self._walls
-            within = (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1)
-            in_bowl = self._in_box(self._local(data, p), self._cavity, self.bean_radius)
-            back = within & (p[:, 2] < self._surface) & ~in_bowl
-            for i in act[back]:
-                self._park(data, int(i))
-                rec["returned"] += 1
-                changed = True
-            out = ~within & (p[:, 2] < self._rim) & ~in_bowl
-            if out.any():
-                self._spilled[act[out]] = True
-                rec["spilled"] += int(np.count_nonzero(out))
-        if changed:
+        act, ids = self._live_beans()
+        if len(act) and self._settle(data, rec, act, data.xpos[ids]):
             mujoco.mj_kinematics(self.model, data)
         if rec["bin_touched_by"] is None:
             rec["bin_touched_by"] = first_toucher(self.model, data, self._is_bin_geom,
                                                   self._is_bean_geom)
+
+    def _prev_values(self) -> tuple[Any, float, list[float] | None]:
+        """(pose, `_pose_low`, `_pose_bounds` or None if not computed yet) of `_prev`, kept
+        from the step that set it (recomputed after a restore: the same bits)."""
+        if self._prev_cache is None or self._prev_cache[0] is not self._prev:
+            self._prev_cache = (self._prev, self._pose_low(*self._prev), None)
+        return self._prev_cache
+
+    def _prev_bounds(self) -> list[float]:
+        pose, low, bounds = self._prev_values()
+        if bounds is None:
+            bounds = self._pose_bounds(*pose)
+            self._prev_cache = (pose, low, bounds)
+        return bounds
+
+    def _live_beans(self) -> tuple[np.ndarray, np.ndarray]:
+        """(indices [L], body ids [L]) of the active beans not spilled (kept until a bean is
+        spawned, parked or spilled)."""
+        if self._live is None:
+            act = np.flatnonzero(self._active & ~self._spilled)
+            self._live = (act, self.bean_ids[act])
+        return self._live
+
+    def _sweep(self, data: mujoco.MjData, rec: dict[str, Any], block: tuple[slice, ...],
+               pos: np.ndarray, rot: np.ndarray, prev_pos: np.ndarray,
+               prev_rot: np.ndarray) -> bool:
+        """The grains of the lattice `block` not taken yet, with the scoop at `pos` [3], `rot`
+        [3, 3] now and at `prev_pos`, `prev_rot` the step before: those in the bowl's outside
+        but not its cavity are pushed aside (taken); those that entered the cavity since the
+        previous pose are taken and, if through the opening with room and a bean in the pool,
+        become beans. Returns whether a bean was spawned."""
+        free = ~self._taken[block]
+        sites = self._grid[block][free]  # [K, 3], in lattice (lexicographic) order
+        if not len(sites):
+            return False
+        local = (sites - pos) @ rot
+        outer = ((local >= self._out_lo) & (local <= self._out_hi)).all(1)
+        if self._nested and not outer.any():
+            return False  # no grain in the bowl's outside (nor, so, in its cavity)
+        near = np.argwhere(free) + [block[0].start, block[1].start, block[2].start]
+        inside = ((local >= self._cav_lo) & (local <= self._cav_hi)).all(1)
+        solid = outer & ~inside
+        if solid.any():
+            self._taken[tuple(near[solid].T)] = True  # pushed aside by the bowl's outside
+        if not inside.any():
+            return False
+        prev = (sites - prev_pos) @ prev_rot
+        entered = inside & ~((prev >= self._cav_lo) & (prev <= self._cav_hi)).all(1)
+        ks = np.flatnonzero(entered)
+        if len(ks):
+            self._taken[tuple(near[ks].T)] = True
+            pooled = list(np.flatnonzero(~self._active & ~self._spilled))
+            if not pooled:
+                rec["pool_empty"] += len(ks)  # the scoop already holds every bean
+                ks = ks[:0]
+        changed = False
+        if len(ks):
+            vel = np.empty(6)
+            mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY,
+                                     self.scoop, vel, 0)
+            beans = [data.xpos[b].copy() for b in self.bean_ids[self._active]]
+            for k in ks:
+                if not self._through_opening(prev[k], local[k]):
+                    continue  # pushed in through a wall: displaced
+                site = sites[k]
+                if beans and np.min(np.linalg.norm(np.asarray(beans) - site, axis=1)
+                                    ) < 2 * self.bean_radius:
+                    continue  # the bowl is full here
+                if not pooled:
+                    rec["pool_empty"] += 1
+                    continue
+                v = vel[3:] + np.cross(vel[:3], site - pos)
+                self._spawn(data, int(pooled.pop(0)), site, v)
+                beans.append(site)
+                rec["scooped"] += 1
+                changed = True
+        return changed
+
+    def _settle(self, data: mujoco.MjData, rec: dict[str, Any], act: np.ndarray,
+                p: np.ndarray) -> bool:
+        """Of the active beans `act` [L] (not spilled) at `p` [L, 3] (world): parks those that
+        fell back into the bin's contents (within its walls, below its surface, not in the
+        bowl) and marks spilled those that landed outside it (below its rim, outside its
+        walls, not in the bowl). Returns whether a bean was parked. Per bean, in floats:
+        comparisons only, exact; the bowl test reads the scoop-frame positions of all L beans
+        (`_local`) as always."""
+        pl = p.tolist()
+        settle = self._settle_z
+        if not any(q[2] < settle for q in pl):
+            return False  # none is low enough to be back in the bin or out of it
+        x0, x1, y0, y1 = self._walls
+        (b0, b1, b2), (c0, c1, c2) = self._bowl_box
+        local = None
+        back, out = [], []
+        for j, (x, y, z) in enumerate(pl):
+            within = x0 < x < x1 and y0 < y < y1
+            if not (z < self._surface if within else z < self._rim):
+                continue
+            if local is None:
+                local = self._local(data, p).tolist()
+            u, v, w = local[j]
+            if b0 <= u <= c0 and b1 <= v <= c1 and b2 <= w <= c2:
+                continue  # in the bowl
+            (back if within else out).append(j)
+        for j in back:
+            self._park(data, int(act[j]))
+            rec["returned"] += 1
+        if out:
+            self._spilled[act[out]] = True
+            self._live = None
+            rec["spilled"] += len(out)
+        return bool(back)
 
     def _through_opening(self, before: np.ndarray, after: np.ndarray) -> bool:
         """Whether the segment `before` -> `after` (scoop frame) enters the cavity through its
@@ -320,6 +440,7 @@ class ScoopScene(Scene):
         for i, a in enumerate(np.asarray(state["active"], dtype=bool)):
             self._set_active(i, bool(a))
         self._spilled = np.asarray(state["spilled_beans"], dtype=bool).copy()
+        self._live = None
         prev = state["prev"]
         self._prev = None if prev is None else (np.asarray(prev[0]).copy(),
                                                 np.asarray(prev[1]).copy())
