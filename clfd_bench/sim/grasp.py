@@ -131,12 +131,6 @@ class GripCapacity:
         return dataclasses.asdict(self)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for [3] vectors (np.cross costs ~10x more on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
-
-
 def grip_capacity(contact: str = "patch", *, grip_force: float = GRIP_FORCE,
                   peak_force: float = GRIP_FORCE_PEAK, mu: float = DEFAULT_MU,
                   pad: tuple[float, float] = PAD_SIZE, radius: float = 0.0) -> GripCapacity:
@@ -313,6 +307,7 @@ class Grasp:
                               and not np.any(model.body_parentid[1:] == self.body_id))
         self._mass = float(model.body_mass[self.body_id])
         self._weight = self._mass * model.opt.gravity.copy()
+        self._weight_list = self._weight.tolist()
         self._inertia = model.body_inertia[self.body_id].copy()
         self._vel = np.empty(6)
         self._view_data: mujoco.MjData | None = None
@@ -415,24 +410,36 @@ class Grasp:
         rot = self._views(data)["ximat"]
         return self._mass * vel[3:], rot @ (self._inertia * (rot.T @ vel[:3]))
 
-    def _contact_wrench(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    def _contact_wrench(self, data: mujoco.MjData) -> tuple[list[float], list[float]]:
         """The contact forces on the prop now: force [3] and torque about its centre of mass
-        [3], world frame. MuJoCo's `cfrc_ext` (contacts and the weld) less the weld's rows."""
+        [3], world frame, as floats. MuJoCo's `cfrc_ext` (contacts and the weld) less the
+        weld's rows. Elementwise arithmetic on floats (the same IEEE operations as on numpy
+        [3] vectors, in the same order); the one matrix product stays numpy's."""
         if data.ncon == 0:
-            return np.zeros(3), np.zeros(3)
+            return [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
         mujoco.mj_rnePostConstraint(self.model, data)
         v = self._views(data)
-        ext = v["cfrc_ext"]  # [torque, force] about the subtree com of the prop's tree
-        com = v["xipos"]
-        force = ext[3:].copy()
-        torque = ext[:3] + _cross(v["subtree_com"] - com, force)
+        # [torque, force] about the subtree com of the prop's tree
+        e0, e1, e2, fx, fy, fz = v["cfrc_ext"].tolist()
+        cx, cy, cz = v["xipos"].tolist()
+        sx, sy, sz = v["subtree_com"].tolist()
+        ax, ay, az = sx - cx, sy - cy, sz - cz
+        tx = e0 + (ay * fz - az * fy)
+        ty = e1 + (az * fx - ax * fz)
+        tz = e2 + (ax * fy - ay * fx)
         r0 = self._rows(data)
         if r0 >= 0:
             f = data.efc_force[r0:r0 + 6]
-            weld_f = -f[0:3]
-            force -= weld_f
-            torque -= -0.5 * (v["xmat"] @ f[3:6]) + _cross(v["xpos"] - com, weld_f)
-        return force, torque
+            w0, w1, w2 = f[0:3].tolist()
+            wx, wy, wz = -w0, -w1, -w2  # the weld's force on the prop
+            fx, fy, fz = fx - wx, fy - wy, fz - wz
+            rx, ry, rz = (v["xmat"] @ f[3:6]).tolist()
+            px, py, pz = v["xpos"].tolist()
+            ax, ay, az = px - cx, py - cy, pz - cz
+            tx -= -0.5 * rx + (ay * wz - az * wy)
+            ty -= -0.5 * ry + (az * wx - ax * wz)
+            tz -= -0.5 * rz + (ax * wy - ay * wx)
+        return [fx, fy, fz], [tx, ty, tz]
 
     def mean_wrench(self, data: mujoco.MjData,
                     momentum: tuple[np.ndarray, np.ndarray] | None = None
@@ -441,16 +448,25 @@ class Grasp:
         module docstring): force [3] (N) at the prop body's origin and torque [3] (Nm) about
         it, in the grasp-site frame. Needs the momentum at the period's start (`update` keeps
         it; the first call after `attach` takes the prop as at rest before); `momentum` is the
-        current one if already computed."""
+        current one if already computed. (Elementwise on floats, as `_contact_wrench`.)"""
         p1, l1 = momentum if momentum is not None else self._momentum(data)
-        p0, l0 = self._momentum_prev if self._momentum_prev is not None else (0.0, 0.0)
+        if self._momentum_prev is not None:
+            p0, l0 = self._momentum_prev[0].tolist(), self._momentum_prev[1].tolist()
+        else:
+            p0 = l0 = [0.0, 0.0, 0.0]
         fc, tc = self._contact_wrench(data)
         rate = 1.0 / self.control_dt
-        force = (p1 - p0) * rate - self._weight - fc
+        p1, l1, w = p1.tolist(), l1.tolist(), self._weight_list
+        force = [(p1[k] - p0[k]) * rate - w[k] - fc[k] for k in range(3)]
         v = self._views(data)
-        torque = (l1 - l0) * rate - tc - _cross(v["xpos"] - v["xipos"], force)
+        px, py, pz = v["xpos"].tolist()
+        cx, cy, cz = v["xipos"].tolist()
+        ax, ay, az = px - cx, py - cy, pz - cz
+        fx, fy, fz = force
+        arm = (ay * fz - az * fy, az * fx - ax * fz, ax * fy - ay * fx)
+        torque = [(l1[k] - l0[k]) * rate - tc[k] - arm[k] for k in range(3)]
         hand_rot = v["hand_xmat"]
-        return hand_rot.T @ force, hand_rot.T @ torque
+        return hand_rot.T @ np.array(force), hand_rot.T @ np.array(torque)
 
     def load(self, data: mujoco.MjData, momentum: tuple[np.ndarray, np.ndarray] | None = None
              ) -> tuple[float, str]:
