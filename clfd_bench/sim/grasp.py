@@ -335,7 +335,9 @@ class Grasp:
     # ------------------------------------------------------------------ queries
     def held(self, data: mujoco.MjData) -> bool:
         """Whether the prop is attached now."""
-        return bool(data.eq_active[self.eq_id])
+        if self._view_data is not data:
+            self._views(data)
+        return bool(self._eq_active[self.eq_id])
 
     def held_pose(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """World pose (position [3], quaternion [4]) where the grasp holds the prop body's origin
@@ -375,14 +377,17 @@ class Grasp:
         return r0
 
     def _views(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
-        """Views of `data`'s rows the load computation reads (cached per MjData)."""
+        """Views of `data`'s rows the load computation reads (cached per MjData: MuJoCo's
+        arrays of an MjData never move)."""
         if self._view_data is not data:
             b = self.body_id
             self._v = {"xpos": data.xpos[b], "xipos": data.xipos[b],
                        "xmat": data.xmat[b].reshape(3, 3), "ximat": data.ximat[b].reshape(3, 3),
                        "hand_xmat": data.xmat[self.hand_id].reshape(3, 3),
+                       "hand_xmat_T": data.xmat[self.hand_id].reshape(3, 3).T,
                        "cfrc_ext": data.cfrc_ext[b],
                        "subtree_com": data.subtree_com[self.model.body_rootid[b]]}
+            self._eq_active = data.eq_active
             self._view_data = data
         return self._v
 
@@ -410,18 +415,21 @@ class Grasp:
         rot = self._views(data)["ximat"]
         return self._mass * vel[3:], rot @ (self._inertia * (rot.T @ vel[:3]))
 
-    def _contact_wrench(self, data: mujoco.MjData) -> tuple[list[float], list[float]]:
+    def _contact_wrench(self, data: mujoco.MjData, com: list[float] | None = None,
+                        origin: list[float] | None = None
+                        ) -> tuple[list[float], list[float]]:
         """The contact forces on the prop now: force [3] and torque about its centre of mass
         [3], world frame, as floats. MuJoCo's `cfrc_ext` (contacts and the weld) less the
         weld's rows. Elementwise arithmetic on floats (the same IEEE operations as on numpy
-        [3] vectors, in the same order); the one matrix product stays numpy's."""
+        [3] vectors, in the same order); the one matrix product stays numpy's. `com`,
+        `origin`: the prop's centre of mass and origin [3] (world) when already read."""
         if data.ncon == 0:
             return [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
         mujoco.mj_rnePostConstraint(self.model, data)
         v = self._views(data)
         # [torque, force] about the subtree com of the prop's tree
         e0, e1, e2, fx, fy, fz = v["cfrc_ext"].tolist()
-        cx, cy, cz = v["xipos"].tolist()
+        cx, cy, cz = v["xipos"].tolist() if com is None else com
         sx, sy, sz = v["subtree_com"].tolist()
         ax, ay, az = sx - cx, sy - cy, sz - cz
         tx = e0 + (ay * fz - az * fy)
@@ -434,7 +442,7 @@ class Grasp:
             wx, wy, wz = -w0, -w1, -w2  # the weld's force on the prop
             fx, fy, fz = fx - wx, fy - wy, fz - wz
             rx, ry, rz = (v["xmat"] @ f[3:6]).tolist()
-            px, py, pz = v["xpos"].tolist()
+            px, py, pz = v["xpos"].tolist() if origin is None else origin
             ax, ay, az = px - cx, py - cy, pz - cz
             tx -= -0.5 * rx + (ay * wz - az * wy)
             ty -= -0.5 * ry + (az * wx - ax * wz)
@@ -454,19 +462,18 @@ class Grasp:
             p0, l0 = self._momentum_prev[0].tolist(), self._momentum_prev[1].tolist()
         else:
             p0 = l0 = [0.0, 0.0, 0.0]
-        fc, tc = self._contact_wrench(data)
+        v = self._views(data)
+        origin, com = v["xpos"].tolist(), v["xipos"].tolist()
+        fc, tc = self._contact_wrench(data, com, origin)
         rate = 1.0 / self.control_dt
         p1, l1, w = p1.tolist(), l1.tolist(), self._weight_list
         force = [(p1[k] - p0[k]) * rate - w[k] - fc[k] for k in range(3)]
-        v = self._views(data)
-        px, py, pz = v["xpos"].tolist()
-        cx, cy, cz = v["xipos"].tolist()
-        ax, ay, az = px - cx, py - cy, pz - cz
+        ax, ay, az = origin[0] - com[0], origin[1] - com[1], origin[2] - com[2]
         fx, fy, fz = force
         arm = (ay * fz - az * fy, az * fx - ax * fz, ax * fy - ay * fx)
         torque = [(l1[k] - l0[k]) * rate - tc[k] - arm[k] for k in range(3)]
-        hand_rot = v["hand_xmat"]
-        return hand_rot.T @ np.array(force), hand_rot.T @ np.array(torque)
+        hand_rot_t = v["hand_xmat_T"]
+        return hand_rot_t @ np.array(force), hand_rot_t @ np.array(torque)
 
     def load(self, data: mujoco.MjData, momentum: tuple[np.ndarray, np.ndarray] | None = None
              ) -> tuple[float, str]:

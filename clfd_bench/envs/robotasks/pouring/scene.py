@@ -137,8 +137,11 @@ class PouringScene(Scene):
     def track(self, data: mujoco.MjData, grasp: Grasp) -> None:
         """A bean has landed outside once it is below the container's rim outside its walls'
         outer faces (on the table, on the rim, on the floor...). When a bean leaves the cup
-        (past its mouth or its wall), where the cup's mouth is then is where it was poured."""
-        local = self._bean_local(data)
+        (past its mouth or its wall), where the cup's mouth is then is where it was poured.
+        (Runs every control step: the beans' positions [n_beans, 3] are read once; the cup
+        test stops once every bean has left it.)"""
+        p = data.xpos[self.bean_ids]
+        local = (p - self._cont_pos) @ self._cont_rot  # `_bean_local`
         rec = self.record
         below = local[:, 2] < self._level
         if below.any():
@@ -146,12 +149,13 @@ class PouringScene(Scene):
                                        | (np.abs(local[:, 1]) > self._outer))
         left = rec["left"]
         if not left.all():
+            cup_pos = data.xpos[self.cup]
             rot = data.xmat[self.cup].reshape(3, 3)
-            in_cup = (data.xpos[self.bean_ids] - data.xpos[self.cup]) @ rot
+            in_cup = (p - cup_pos) @ rot
             out = ((in_cup[:, 2] > self._mouth)
                    | (np.hypot(in_cup[:, 0], in_cup[:, 1]) > self._cup_outer)) & ~left
             if out.any():
-                mouth = data.xpos[self.cup] + self._mouth * rot[:, 2]
+                mouth = cup_pos + self._mouth * rot[:, 2]
                 k = int(np.count_nonzero(out))
                 rec["pour_sum"] = rec["pour_sum"] + k * mouth
                 rec["pour_count"] += k
