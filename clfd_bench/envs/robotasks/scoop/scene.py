@@ -146,6 +146,8 @@ class ScoopScene(Scene):
         self._grid = self._origin + np.moveaxis(np.indices(self._shape), 0, -1) * self._spacing
         #: (pose, lowest z, bounds or None) of the pose `_prev` holds (see `_pose_low`).
         self._prev_cache: tuple[Any, float, list[float] | None] | None = None
+        #: (block, its free mask, its free sites [K, 3]) of the last sweep (see `_sweep`).
+        self._free_cache: tuple[tuple[int, ...], np.ndarray, np.ndarray] | None = None
         #: (indices, body ids) of the active beans not spilled, None when to be recomputed.
         self._live: tuple[np.ndarray, np.ndarray] | None = None
         self._view_data: mujoco.MjData | None = None
@@ -161,9 +163,10 @@ class ScoopScene(Scene):
         pts = pos + self._outer_corners @ rot.T
         return pts.min(0).tolist() + pts.max(0).tolist()
 
-    def _block(self, a: list[float], b: list[float]) -> tuple[slice, slice, slice] | None:
-        """The lattice block (index slices) of the sites within the world bounding box of the
-        bowl's outside at two poses (`_pose_bounds` `a`, `b`), or None when it is empty."""
+    def _block(self, a: list[float], b: list[float]) -> tuple[int, ...] | None:
+        """The lattice block (index ranges lo0, hi0, lo1, hi1, lo2, hi2) of the sites within
+        the world bounding box of the bowl's outside at two poses (`_pose_bounds` `a`, `b`),
+        or None when it is empty."""
         lo_pt = [min(a[0], b[0]), min(a[1], b[1]), min(a[2], b[2])]
         hi_pt = [max(a[3], b[3]), max(a[4], b[4]), max(a[5], b[5])]
         o, s, shape = self._origin_list, self._spacing, self._shape
@@ -185,7 +188,7 @@ class ScoopScene(Scene):
             lo, hi = np.maximum(lo, 0).tolist(), np.minimum(hi, shape).tolist()
         if hi[0] <= lo[0] or hi[1] <= lo[1] or hi[2] <= lo[2]:
             return None
-        return slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(lo[2], hi[2])
+        return lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
 
     # -- the pool
     def _set_active(self, i: int, active: bool) -> None:
@@ -237,6 +240,7 @@ class ScoopScene(Scene):
         for i in range(self.n_beans):
             self._park(data, i)
         self._taken[:] = False
+        self._free_cache = None
         self._spilled[:] = False
         self._live = None
         self._prev = None
@@ -308,17 +312,27 @@ class ScoopScene(Scene):
             self._live = (act, self.bean_ids[act])
         return self._live
 
-    def _sweep(self, data: mujoco.MjData, rec: dict[str, Any], block: tuple[slice, ...],
+    def _sweep(self, data: mujoco.MjData, rec: dict[str, Any], block: tuple[int, ...],
                pos: np.ndarray, rot: np.ndarray, prev_pos: np.ndarray,
                prev_rot: np.ndarray) -> bool:
         """The grains of the lattice `block` not taken yet, with the scoop at `pos` [3], `rot`
         [3, 3] now and at `prev_pos`, `prev_rot` the step before: those in the bowl's outside
         but not its cavity are pushed aside (taken); those that entered the cavity since the
         previous pose are taken and, if through the opening with room and a bean in the pool,
-        become beans. Returns whether a bean was spawned."""
-        taken = self._taken[block]  # a view: writing it marks the lattice
-        free = ~taken
-        sites = self._grid[block][free]  # [K, 3], in lattice (lexicographic) order
+        become beans. Returns whether a bean was spawned.
+
+        The block's free mask and sites are kept while the block and the grains taken stay
+        the same (the bowl often stays within the same lattice block for a few steps)."""
+        lo0, hi0, lo1, hi1, lo2, hi2 = block
+        view = (slice(lo0, hi0), slice(lo1, hi1), slice(lo2, hi2))
+        taken = self._taken[view]  # a view: writing it marks the lattice
+        cache = self._free_cache
+        if cache is not None and cache[0] == block:
+            free, sites = cache[1], cache[2]
+        else:
+            free = ~taken
+            sites = self._grid[view][free]  # [K, 3], in lattice (lexicographic) order
+            self._free_cache = (block, free, sites)
         if not len(sites):
             return False
         local = (sites - pos) @ rot
@@ -333,12 +347,14 @@ class ScoopScene(Scene):
         solid = outer & ~inside  # pushed aside by the bowl's outside: taken
         if not inside.any():
             if solid.any():
-                taken[free] = solid
+                self._mark(block, taken, free, sites, solid)
             return False
         prev = (sites - prev_pos) @ prev_rot
         m = (prev >= self._cav_lo) & (prev <= self._cav_hi)
         entered = inside & ~(m[:, 0] & m[:, 1] & m[:, 2])
-        taken[free] = solid | entered  # the free sites: taken if pushed aside or entered
+        gone = solid | entered  # taken: pushed aside or entered
+        if gone.any():
+            self._mark(block, taken, free, sites, gone)
         ks = np.flatnonzero(entered)
         if len(ks):
             pooled = list(np.flatnonzero(~self._active & ~self._spilled))
@@ -367,6 +383,14 @@ class ScoopScene(Scene):
                 rec["scooped"] += 1
                 changed = True
         return changed
+
+    def _mark(self, block: tuple[int, ...], taken: np.ndarray, free: np.ndarray,
+              sites: np.ndarray, gone: np.ndarray) -> None:
+        """Marks the free sites `gone` [K] of the block (`taken`: the block's view of the
+        lattice, `free` its free mask, `sites` [K, 3] the free sites) taken, and keeps the
+        block's new free mask and sites."""
+        taken[free] = gone  # the free sites: False before, `gone` now
+        self._free_cache = (block, ~taken, sites[~gone])
 
     def _settle(self, data: mujoco.MjData, rec: dict[str, Any], act: np.ndarray,
                 p: np.ndarray) -> bool:
@@ -448,6 +472,7 @@ class ScoopScene(Scene):
     def restore_scene_state(self, state: dict[str, Any]) -> None:
         super().restore_scene_state(state)
         self._taken = np.asarray(state["taken"], dtype=bool).copy()
+        self._free_cache = None
         for i, a in enumerate(np.asarray(state["active"], dtype=bool)):
             self._set_active(i, bool(a))
         self._spilled = np.asarray(state["spilled_beans"], dtype=bool).copy()
