@@ -119,8 +119,8 @@ class GripCapacity:
         """Load ratio (> 1: the grip cannot hold it) of a wrench on the prop [3] N, [3] Nm in the
         grasp-site frame, and which limit is the tightest ("friction", "normal", "tilt_x",
         "tilt_z")."""
-        f0, f1, f2 = float(force[0]), float(force[1]), float(force[2])
-        t0, t1, t2 = float(torque[0]), float(torque[1]), float(torque[2])
+        f0, f1, f2 = np.asarray(force, dtype=float).tolist()
+        t0, t1, t2 = np.asarray(torque, dtype=float).tolist()
         ratios = ((((f0 * f0 + f2 * f2) / self.tangential ** 2
                     + t1 * t1 / self.torsion ** 2) ** 0.5, "friction"),
                   (abs(f1) / self.normal, "normal"), (abs(t0) / self.tilt_x, "tilt_x"),
