@@ -198,3 +198,15 @@ def test_self_crossings_counts_the_loops_a_curve_draws():
     assert self_crossings(line, min_step=1e-3) == 0
     with pytest.raises(ValueError, match="planar"):
         self_crossings(np.zeros((10, 3)))
+
+
+def test_one_pair_sweep_equals_the_batched_sweep_to_the_bit():
+    """`dtw`/`frechet` of one pair run a 1-D sweep; in a batch the same pair gives the same
+    bits (the sweeps do the same operations on the same cells)."""
+    rng = np.random.default_rng(7)
+    for n, m in ((1000, 1000), (700, 1000), (1000, 300), (5, 9), (1, 4), (3, 1), (1, 1)):
+        a = np.cumsum(rng.normal(size=(n, 2)), 0)
+        b = np.cumsum(rng.normal(size=(m, 2)), 0)
+        for one, batch in ((dtw, dtw_batch), (frechet, frechet_batch)):
+            many = batch(np.stack([a, a + 1.0, a]), np.stack([b, b, b]))
+            assert one(a, b) == many[0] == many[2], (n, m, one.__name__)

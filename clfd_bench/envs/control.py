@@ -31,6 +31,7 @@ _BLOWUP_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
 _BLOWUP_INDEX = np.array([int(w) for w in _BLOWUP_WARNINGS])
+_I0, _I1, _I2 = (int(w) for w in _BLOWUP_WARNINGS)
 
 
 def check_finite_action(action: np.ndarray, step: int | None = None) -> None:
@@ -185,8 +186,12 @@ class CommandExecution:
         self._q_ref_prev = self._hold_q.copy()  # no feed-forward: the reference stands still
 
     def _check_blowup(self, step: int) -> str | None:
-        new = self._warn_numbers[_BLOWUP_INDEX] > self._warn_base
+        w, base = self._warn_numbers, self._warn_base_list  # live view; counts at the reset
         q, v = self._qpos, self._qvel  # live views of the state
+        if (w[_I0] == base[0] and w[_I1] == base[1] and w[_I2] == base[2]
+                and math.isfinite(q @ q + v @ v)):
+            return None
+        new = self._warn_numbers[_BLOWUP_INDEX] > self._warn_base
         if not new.any() and math.isfinite(q @ q + v @ v):
             return None
         names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
