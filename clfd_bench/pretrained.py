@@ -109,14 +109,14 @@ BUNDLES: dict[str, Bundle] = {
         Bundle(
             name="helloworld-fast",
             file="helloworld-fast.tar.xz",
-            sha256="0f172086ede627b5b81d1d28fcbe1b2ae3730abc970336ee9df80fa4fbbd2ce2",
+            sha256="5f466971e9db0579a41441d1892aa3bc555c6090692a608f081d9d7022de398b",
             description="the README's main job: HelloWorld (7 letters), all 7 methods, "
                         "`fast` profile, seed 0, order 0, executed on the simulated Panda",
             dataset="helloworld",
             profile="fast",
             methods=("sg", "ft", "rep", "si", "mas", "hn", "chn"),
             made_with_version="0.1.0",
-            size=20610152,
+            size=20528616,
         ),
     )
 }
