@@ -6,7 +6,7 @@ every prediction also executed on the simulated Panda; then a video of the robot
 site``), whose ``index.html`` path it prints. Writes into ``results/`` (or ``--out``):
 ``leaderboard.md/.csv/.json``, the PNG figures, ``runs/``, ``videos/`` and ``site/``. Running
 it again skips what is finished (a killed job resumes, the site's videos included). About
-15–23 minutes on 2 cores (the site's 49 videos ~3 of them).
+10–15 minutes on 2 cores (the site's 49 videos ~3 of them; 12 min 37 s on 2026-12-06).
 """
 
 from __future__ import annotations
