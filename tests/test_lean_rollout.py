@@ -233,3 +233,19 @@ def test_demo_replays_end_where_they_did_before_the_planned_execution():
         got = {"hash": digest.hexdigest()[:16], "success": r.success, "steps": r.steps,
                "failure": r.info.get("failure_reason")}
         assert got == want, key
+
+
+def test_replay_families_give_the_verdicts_they_gave_before_the_planned_execution():
+    """Every perturbation family on demo 0 of a letter, a LASA shape and a RoboTasks scene:
+    the verdict, failure reason and steps that `clfd-bench replay` recorded with the code before
+    the planned execution (`replay_families` in the pinned file). Verdicts and reasons do not
+    hang on the last bit of the physics, so this runs on any machine."""
+    pinned = json.loads(BEFORE.read_text())["replay_families"]
+    assert len(pinned) >= 40
+    for want in pinned:
+        env = get_env(want["env"])
+        traj = replay_trajectory(env.unwrapped, want["demo"], want["family"])
+        r = rollout(env, traj, demo=want["demo"])
+        got = {"success": r.success, "failure_reason": r.info.get("failure_reason"),
+               "steps": r.info.get("step")}
+        assert got == {k: want[k] for k in got}, (want["env"], want["family"])
