@@ -130,43 +130,33 @@ def _dp_chunk(pred: np.ndarray, ref: np.ndarray, combine: Callable) -> np.ndarra
             np.multiply(diff, diff, out=diff)
             costs += diff
         np.sqrt(costs, out=costs)
-        if b == 1:  # one pair: the same sweep on 1-D views (slicing them costs less)
-            _sweep_one(costs[:, 0], k0, k1, i0, n, m, [x[0] for x in bufs], tmp[0], combine)
-            continue
-        for k in range(k0, k1):
-            new, prev1, prev2 = bufs[k % 3], bufs[(k - 1) % 3], bufs[(k - 2) % 3]
-            c = costs[k - k0]
-            if k == 0:
-                new[:, 1] = c[:, 0]
-                continue
-            lo = max(0, k - m + 1)
-            # One cell beyond the last valid i, so the next two diagonals read inf there.
-            hi = min(k + 1, n - 1) + 1
-            t = tmp[:, : hi - lo]
-            np.minimum(prev1[:, lo + 1 : hi + 1], prev1[:, lo:hi], out=t)
-            np.minimum(t, prev2[:, lo:hi], out=t)
-            combine(c[:, lo - i0 : hi - i0], t, out=new[:, lo + 1 : hi + 1])
+        if b == 1:  # one pair: the sweep on 1-D views (slicing them costs less)
+            _sweep(costs[:, 0], k0, k1, i0, n, m, [x[0] for x in bufs], tmp[0], combine)
+        else:
+            _sweep(costs, k0, k1, i0, n, m, bufs, tmp, combine)
     return bufs[(n_diag - 1) % 3][:, n].copy()
 
 
-def _sweep_one(costs: np.ndarray, k0: int, k1: int, i0: int, n: int, m: int,
-               bufs: list[np.ndarray], tmp: np.ndarray, combine: Callable) -> None:
-    """:func:`_dp_chunk`'s sweep over diagonals ``k0..k1-1`` for one pair, on 1-D arrays
-    (``costs`` [k, i], ``bufs`` three [n + 1], ``tmp`` [n]): the same operations on the same
-    cells, so the same bits."""
+def _sweep(costs: np.ndarray, k0: int, k1: int, i0: int, n: int, m: int,
+           bufs: list[np.ndarray], tmp: np.ndarray, combine: Callable) -> None:
+    """:func:`_dp_chunk`'s sweep over the diagonals ``k0..k1-1``: ``costs`` [k, (B,) i], the
+    three rotating diagonal buffers ``bufs`` [(B,) n + 1] and ``tmp`` [(B,) n], either with a
+    batch axis or, for one pair, 1-D (the same operations on the same cells, fewer dimensions
+    to slice). The last axis is the cell index ``i``."""
     minimum = np.minimum
     for k in range(k0, k1):
         new, prev1, prev2 = bufs[k % 3], bufs[(k - 1) % 3], bufs[(k - 2) % 3]
         c = costs[k - k0]
         if k == 0:
-            new[1] = c[0]
+            new[..., 1] = c[..., 0]
             continue
         lo = k - m + 1 if k >= m else 0
+        # One cell beyond the last valid i, so the next two diagonals read inf there.
         hi = (k + 1 if k + 1 < n - 1 else n - 1) + 1
-        t = tmp[: hi - lo]
-        minimum(prev1[lo + 1 : hi + 1], prev1[lo:hi], out=t)
-        minimum(t, prev2[lo:hi], out=t)
-        combine(c[lo - i0 : hi - i0], t, out=new[lo + 1 : hi + 1])
+        t = tmp[..., : hi - lo]
+        minimum(prev1[..., lo + 1 : hi + 1], prev1[..., lo:hi], out=t)
+        minimum(t, prev2[..., lo:hi], out=t)
+        combine(c[..., lo - i0 : hi - i0], t, out=new[..., lo + 1 : hi + 1])
 
 
 def dtw_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
