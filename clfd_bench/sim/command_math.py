@@ -25,20 +25,25 @@ CHANNELS = 13
 GROUPS = 9
 
 
-def filter_step(stages: np.ndarray, x: np.ndarray, gain: np.ndarray) -> np.ndarray:
-    """Advances the cascaded low-passes by one sample, in place.
+def filter_step(stages: np.ndarray, x: np.ndarray, gain: np.ndarray,
+                tmp: np.ndarray) -> np.ndarray:
+    """Advances the cascaded low-passes by one sample, in place: each stage s += gain (x - s),
+    x then the stage's output.
 
     Args:
         stages: [S, 13] each stage's output at the previous sample (updated).
         x: [13] this sample's input.
         gain: [13] libfranka's filter gain per channel (1: no filtering).
+        tmp: [13] a work array.
 
     Returns:
         [13] the last stage's output (a view of `stages[-1]`).
     """
-    for k in range(len(stages)):
-        stages[k] += gain * (x - stages[k])
-        x = stages[k]
+    for st in stages:
+        np.subtract(x, st, out=tmp)
+        np.multiply(gain, tmp, out=tmp)
+        np.add(st, tmp, out=st)
+        x = st
     return x
 
 
@@ -55,38 +60,28 @@ def filter_stream(x: np.ndarray, gain: np.ndarray, stages0: np.ndarray) -> np.nd
     """
     out = np.empty((len(x), len(stages0), x.shape[1]))
     stages = stages0.copy()
-    rows = list(stages)  # views of each stage's row
     tmp = np.empty(x.shape[1])
-    sub, mul, add = np.subtract, np.multiply, np.add
     for t in range(len(x)):
-        xt = x[t]
-        for st in rows:  # `filter_step`'s operations, into preallocated arrays
-            sub(xt, st, out=tmp)
-            mul(gain, tmp, out=tmp)
-            add(st, tmp, out=st)
-            xt = st
+        filter_step(stages, x[t], gain, tmp)
         out[t] = stages
     return out
 
 
-def derivatives(x: np.ndarray, v_prev: np.ndarray, a_prev: np.ndarray, rate: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Velocity, acceleration and jerk of a filtered command from its increment.
+def velocity(x: np.ndarray, rate: float) -> np.ndarray:
+    """Velocity [..., 13] of a filtered command from its increment `x` [..., 13]: r x."""
+    return rate * x
 
-    Args:
-        x: [..., 13] the filtered increment of this step.
-        v_prev, a_prev: [..., 13] the velocity and acceleration at the previous step.
-        rate: the control rate, 1/s.
 
-    Returns:
-        (v, a, j), each [..., 13]: v = r x, a = r (v - v_prev), j = r (a - a_prev), with the
-        products taken in one fixed order.
-    """
-    r2, r3 = rate * rate, rate * rate * rate
-    v = rate * x
-    a = r2 * x - rate * v_prev
-    j = r3 * x - r2 * v_prev - rate * a_prev
-    return v, a, j
+def acceleration(x: np.ndarray, v_prev: np.ndarray, rate: float) -> np.ndarray:
+    """Acceleration [..., 13] from the increment and the previous step's velocity:
+    r (r x - v_prev), as r² x - r v_prev."""
+    return (rate * rate) * x - rate * v_prev
+
+
+def jerk(x: np.ndarray, v_prev: np.ndarray, a_prev: np.ndarray, rate: float) -> np.ndarray:
+    """Jerk [..., 13] from the increment and the previous step's velocity and acceleration:
+    r (a - a_prev), as r³ x - r² v_prev - r a_prev."""
+    return (rate * rate * rate) * x - (rate * rate) * v_prev - rate * a_prev
 
 
 def group_norms2(d: np.ndarray) -> np.ndarray:

@@ -87,12 +87,14 @@ import numpy as np
 
 from clfd_bench.sim.command_math import (
     CHANNELS,
-    derivatives,
+    acceleration,
     filter_step,
     filter_stream,
     group_norms2,
+    jerk,
     rotation_increment,
     stream_increments,
+    velocity,
 )
 from clfd_bench.sim.robot import ARM_JOINTS, JOINT_VELOCITY_LIMITS
 
@@ -342,6 +344,7 @@ class MotionMonitor:
         self._bounds2 = self._bounds_tol ** 2
         self._v3 = np.empty(3)
         self._du = np.zeros(CHANNELS)
+        self._tmp = np.empty(CHANNELS)
         self._peaks2 = np.zeros((3, 9))
         self.reset(np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(7))
 
@@ -393,12 +396,14 @@ class MotionMonitor:
         np.subtract(pos, self._pos, out=du[0:3])
         rotation_increment(du[3:6], quat, self._quat, self._v3)
         np.subtract(q_ref, self._q, out=du[6:13])
-        x = filter_step(self._stages, du, self._gain)  # in place: `reset` after a violation
+        # in place: `reset` after a violation
+        x = filter_step(self._stages, du, self._gain, self._tmp)
         # Velocity, acceleration, jerk of the filtered command.
         hist = self._hist
         hist[0] = x
-        v, a, j = derivatives(x, hist[1], hist[2], self.rate)
-        norms2 = group_norms2(np.stack([v, a, j]))  # [3, 9] squared norms
+        r = self.rate
+        v, a = velocity(x, r), acceleration(x, hist[1], r)
+        norms2 = group_norms2(np.stack([v, a, jerk(x, hist[1], hist[2], r)]))  # [3, 9]
         np.maximum(self._peaks2, norms2, out=self._peaks2)
         if (norms2 > self._bounds2).any():
             return self._reflex(np.sqrt(norms2), self.step)
@@ -425,8 +430,36 @@ class MotionMonitor:
         Returns:
             A `StreamCheck`: the first refused command (`refused_at`, `violation`) or None.
         """
-        return check_stream(self, np.asarray(pos, dtype=float), np.asarray(quat, dtype=float),
-                            np.asarray(q_ref, dtype=float))
+        pos, quat, q = (np.asarray(v, dtype=float) for v in (pos, quat, q_ref))
+        start = self.state()
+        d = pos - self.shoulder
+        reach2 = d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2
+        raw_bad = (reach2 > self._reach2) | (pos[:, 2] < self.floor_height)
+        joint_bad = (np.abs(q - self._q_mid) > self._q_half).any(axis=1)
+        stages = filter_stream(stream_increments(pos, quat, q, start["pos"], start["quat"],
+                                                 start["q"]), self._gain, start["stages"])
+        x = stages[:, -1]
+        hist, r = start["hist"], self.rate
+        vel = velocity(x, r)
+        vel_prev = np.concatenate([hist[1][None], vel[:-1]])
+        acc = acceleration(x, vel_prev, r)
+        acc_prev = np.concatenate([hist[2][None], acc[:-1]])
+        norms2 = group_norms2(np.stack([vel, acc, jerk(x, vel_prev, acc_prev, r)], axis=1))
+        reflex_bad = (norms2 > self._bounds2).any(axis=(1, 2))  # norms2 [T, 3, 9]
+        bad = np.flatnonzero(raw_bad | joint_bad | reflex_bad)
+        refused_at = int(bad[0]) if bad.size else None
+        violation = None
+        reflex = False
+        if refused_at is not None:
+            k, step = refused_at, self.step + refused_at
+            if raw_bad[k]:
+                violation = self._unreachable(math.sqrt(reach2[k]), float(pos[k, 2]), step)
+            elif joint_bad[k]:
+                violation = self._joint_range(q[k], step)
+            else:
+                violation, reflex = self._reflex(np.sqrt(norms2[k]), step), True
+        return StreamCheck(refused_at, violation, start, pos, quat, q, stages, vel, acc, norms2,
+                           np.sqrt(reach2), reflex)
 
     def _unreachable(self, reach: float, z: float, step: int) -> Violation:
         if reach > self.limits.max_reach:
@@ -507,8 +540,7 @@ class StreamCheck:
 
     refused_at: int | None
     violation: Violation | None
-    _monitor: MotionMonitor
-    _start: dict[str, Any]
+    _start: dict[str, Any]  # the monitor's state before the stream
     _pos: np.ndarray
     _quat: np.ndarray
     _q: np.ndarray
@@ -541,39 +573,3 @@ class StreamCheck:
             state["hist"][0] = self._stages[k, -1]
             state["peaks2"] = np.maximum(state["peaks2"], self._norms2[k])
         return state
-
-
-def check_stream(monitor: MotionMonitor, pos: np.ndarray, quat: np.ndarray, q: np.ndarray
-                 ) -> StreamCheck:
-    """`MotionMonitor.check_stream` (see there): pos [T, 3], quat [T, 4], q [T, 7]."""
-    m = monitor
-    start = m.state()
-    d = pos - m.shoulder
-    reach2 = d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2
-    raw_bad = (reach2 > m._reach2) | (pos[:, 2] < m.floor_height)
-    joint_bad = (np.abs(q - m._q_mid) > m._q_half).any(axis=1)
-    stages = filter_stream(stream_increments(pos, quat, q, start["pos"], start["quat"],
-                                             start["q"]), m._gain, start["stages"])
-    x = stages[:, -1]
-    hist = start["hist"]
-    vel, _, _ = derivatives(x, hist[1], hist[2], m.rate)
-    vel_prev = np.concatenate([hist[1][None], vel[:-1]])
-    _, acc, _ = derivatives(x, vel_prev, hist[2], m.rate)
-    acc_prev = np.concatenate([hist[2][None], acc[:-1]])
-    _, _, jerk = derivatives(x, vel_prev, acc_prev, m.rate)
-    norms2 = group_norms2(np.stack([vel, acc, jerk], axis=1))  # [T, 3, 9]
-    reflex_bad = (norms2 > m._bounds2).any(axis=(1, 2))
-    bad = np.flatnonzero(raw_bad | joint_bad | reflex_bad)
-    refused_at = int(bad[0]) if bad.size else None
-    violation = None
-    if refused_at is not None:
-        k, step = refused_at, m.step + refused_at
-        if raw_bad[k]:
-            violation = m._unreachable(math.sqrt(reach2[k]), float(pos[k, 2]), step)
-        elif joint_bad[k]:
-            violation = m._joint_range(q[k], step)
-        else:
-            violation = m._reflex(np.sqrt(norms2[k]), step)
-    reflex = refused_at is not None and not raw_bad[refused_at] and not joint_bad[refused_at]
-    return StreamCheck(refused_at, violation, m, start, pos, quat, q, stages, vel, acc, norms2,
-                       np.sqrt(reach2), reflex)
