@@ -213,8 +213,8 @@ class PandaEnv(CommandExecution, gym.Env):
         self._ik_error = (0.0, 0.0)
         self._target_pos = np.zeros(3)
         self._target_quat = np.array([1.0, 0.0, 0.0, 0.0])
-        self._warn_base = np.zeros(len(_BLOWUP_WARNINGS), dtype=int)
-        self._warn_base_list = self._warn_base.tolist()
+        #: the blow-up warning counters at the reset ([3] ints)
+        self._warn_base = [0] * len(_BLOWUP_WARNINGS)
         #: seconds spent in MuJoCo's physics steps since construction (`_drive`)
         self.physics_s = 0.0
         self._reset_robot(0, HOME_QPOS)
@@ -367,8 +367,7 @@ class PandaEnv(CommandExecution, gym.Env):
         self._last_success = False
         self._tracking_error = (0.0, 0.0)
         self._ik_error = (0.0, 0.0)
-        self._warn_base = np.array([self.data.warning[w].number for w in _BLOWUP_WARNINGS])
-        self._warn_base_list = self._warn_base.tolist()
+        self._warn_base = [int(self.data.warning[w].number) for w in _BLOWUP_WARNINGS]
         if self.motion_monitor is not None:
             self.motion_monitor.reset(self._target_pos, self._target_quat, q0)
             self.collision_monitor.reset()
@@ -511,7 +510,6 @@ class PandaEnv(CommandExecution, gym.Env):
         self.tracker.posture_task.set_target(state["tracker_posture"])
         for k, v in state["episode"].items():
             setattr(self, k, v)
-        self._warn_base_list = np.asarray(self._warn_base).tolist()
         self.tracker.set_target(self._target_pos, self._target_quat)
         if self.motion_monitor is not None and state.get("monitor") is not None:
             self.motion_monitor.set_state(state["monitor"])

@@ -30,7 +30,6 @@ _BLOWUP_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
-_BLOWUP_INDEX = np.array([int(w) for w in _BLOWUP_WARNINGS])
 _I0, _I1, _I2 = (int(w) for w in _BLOWUP_WARNINGS)
 
 
@@ -186,13 +185,10 @@ class CommandExecution:
         self._q_ref_prev = self._hold_q.copy()  # no feed-forward: the reference stands still
 
     def _check_blowup(self, step: int) -> str | None:
-        w, base = self._warn_numbers, self._warn_base_list  # live view; counts at the reset
+        w, base = self._warn_numbers, self._warn_base  # live view; the counts at the reset
         q, v = self._qpos, self._qvel  # live views of the state
-        if (w[_I0] == base[0] and w[_I1] == base[1] and w[_I2] == base[2]
-                and math.isfinite(q @ q + v @ v)):
-            return None
-        new = self._warn_numbers[_BLOWUP_INDEX] > self._warn_base
-        if not new.any() and math.isfinite(q @ q + v @ v):
+        new = (w[_I0] > base[0], w[_I1] > base[1], w[_I2] > base[2])
+        if not any(new) and math.isfinite(q @ q + v @ v):
             return None
         names = [w.name for w, hit in zip(_BLOWUP_WARNINGS, new, strict=True) if hit]
         what = f"MuJoCo warned {names} and reset the state" if names else "non-finite state"

@@ -9,6 +9,8 @@ import gymnasium as gym
 import numpy as np
 
 from clfd_bench.envs.base import CONTROL_HZ, PandaEnv
+from clfd_bench.sim.collisions import CollisionMonitor
+from clfd_bench.sim.limits import MotionMonitor
 
 #: Default time the scene settles after the trajectory (release, objects coming to rest), s.
 DEFAULT_SETTLE_S = 1.0
@@ -200,9 +202,6 @@ def plain_env(env: gym.Env) -> bool:
     `run_plan`) and give what stepping it gives: only Gymnasium's default wrappers around a
     `PandaEnv` whose `step` and monitors are the library's own. Any other wrapper (e.g. a
     tracer that records every step) or a replaced monitor gets `step` called per action."""
-    from clfd_bench.sim.collisions import CollisionMonitor
-    from clfd_bench.sim.limits import MotionMonitor
-
     while isinstance(env, gym.Wrapper):
         if type(env) not in _PLAIN_WRAPPERS:
             return False
