@@ -38,14 +38,11 @@ class RoboTask:
         name: the dataset's task name, also its folder and its assets' name ("openbox").
         env_name: the env id's name ("BoxOpening": `clfd/BoxOpening-v<version>`).
         dataset: the dataset of its demonstrations ("robotasks", "robotasks9").
-        contact_heavy: many bodies in contact (beans, a mat of strips): the simulation-speed
-            benchmark's lower target applies (`clfd_bench.execution.bench`).
     """
 
     name: str
     env_name: str
     dataset: str
-    contact_heavy: bool = False
 
     @property
     def package(self) -> str:
@@ -57,12 +54,12 @@ TASKS: tuple[RoboTask, ...] = (
     RoboTask("openbox", "BoxOpening", "robotasks"),
     RoboTask("bottle2shelf", "BottleShelving", "robotasks"),
     RoboTask("platestandingtolying", "PlateStacking", "robotasks"),
-    RoboTask("pouring", "Pouring", "robotasks", contact_heavy=True),
+    RoboTask("pouring", "Pouring", "robotasks"),
     RoboTask("wineglass", "WineGlass", "robotasks9"),
     RoboTask("pan2stove", "PanToStove", "robotasks9"),
     RoboTask("obstaclerotate", "ObstacleRotate", "robotasks9"),
-    RoboTask("matfolding", "MatFolding", "robotasks9", contact_heavy=True),
-    RoboTask("scoop", "Scoop", "robotasks9", contact_heavy=True),
+    RoboTask("matfolding", "MatFolding", "robotasks9"),
+    RoboTask("scoop", "Scoop", "robotasks9"),
 )
 
 

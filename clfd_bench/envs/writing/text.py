@@ -22,6 +22,11 @@ from clfd_bench.envs.writing.spec import (
 )
 
 
+def _lift(action: np.ndarray) -> float:
+    """The pen lift an action [3] commands, in [0, 1] (0: on the board)."""
+    return float(np.clip(action[2], 0.0, 1.0))
+
+
 class HelloWorldTextEnv(WritingBase):
     """## Description
 
@@ -157,11 +162,10 @@ class HelloWorldTextEnv(WritingBase):
     def _action_to_target(self, action: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray, float | None]:
         xy = np.minimum(np.maximum(action[:2], self._low), self._high)
-        lift = float(np.clip(action[2], 0.0, 1.0))
-        return self.hand_target(xy, lift), self._hand_quat, None
+        return self.hand_target(xy, _lift(action)), self._hand_quat, None
 
     def _on_command(self, action: np.ndarray) -> None:
-        self._commanded_down.append(float(np.clip(action[2], 0.0, 1.0)) < PEN_DOWN_LIFT)
+        self._commanded_down.append(_lift(action) < PEN_DOWN_LIFT)
 
     def trajectory_to_actions(self, trajectory: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
         """Per-letter trajectories (list of [T_k, 2] or [L, T, 2], data units, one per letter
