@@ -6,11 +6,9 @@ linearly with the length unit, the swept area quadratically (see
 :mod:`clfd_bench.metrics.thresholds`).
 
 DTW and Fréchet are dynamic programmes over the ``[T, T2]`` matrix of Euclidean point
-distances. They run as a sweep over its anti-diagonals, whose cells depend only on the two
-previous anti-diagonals, so every step is a handful of numpy operations over a whole
-diagonal and over a batch of trajectory pairs at once. The recursion is the textbook one,
-evaluated in the same order, so the result equals the cell-by-cell loop's up to the rounding
-of the point distances (tests compare to 1e-12 relative).
+distances, compiled with numba (:mod:`clfd_bench.metrics.warping`); the recursion is the
+textbook one and its arithmetic is the cell-by-cell loop's, so the result equals that loop's to
+the bit (tests).
 
 Point-set metrics, which ignore the time order (:func:`hausdorff`, :func:`coverage`,
 :func:`nearest_distances`), compare the shapes two trajectories draw; the writing envs use them.
@@ -38,13 +36,6 @@ __all__ = [
     "swept_area_batch",
     "trajectory_errors",
 ]
-
-# Target size (bytes) of one block of skewed costs: small enough to stay in the CPU cache.
-_BLOCK_BYTES = 256 * 2**10
-# Pairs swept together; larger batches amortise numpy's per-call overhead until the
-# per-diagonal arrays outgrow the cache (measured best around 8-16 pairs of 1000 points).
-_MAX_BATCH = 16
-
 
 def _as_batch(a: np.ndarray, name: str) -> np.ndarray:
     """Check a batch of trajectories ``[B, T, D]`` and return it as float64."""
@@ -75,88 +66,12 @@ def _check_pair(pred: np.ndarray, ref: np.ndarray) -> None:
         )
 
 
-def _batched_dp(pred: np.ndarray, ref: np.ndarray, combine: Callable) -> np.ndarray:
-    """:func:`_dp_chunk` over chunks of at most ``_MAX_BATCH`` pairs."""
+def _warping(pred: np.ndarray, ref: np.ndarray, frechet: bool) -> np.ndarray:
+    """:func:`clfd_bench.metrics.warping.warping_batch` on checked batches [B, n, D], [B, m, D]."""
+    from clfd_bench.metrics.warping import warping_batch  # numba: imported on first use
+
     _check_pair(pred, ref)
-    out = np.empty(pred.shape[0])
-    for s in range(0, pred.shape[0], _MAX_BATCH):
-        chunk = slice(s, s + _MAX_BATCH)
-        out[chunk] = _dp_chunk(pred[chunk], ref[chunk], combine)
-    return out
-
-
-def _dp_chunk(pred: np.ndarray, ref: np.ndarray, combine: Callable) -> np.ndarray:
-    """Run ``D[i, j] = combine(c[i, j], min(D[i-1, j], D[i, j-1], D[i-1, j-1]))`` per pair.
-
-    ``c[i, j] = |pred[b, i] - ref[b, j]|``, ``D[0, 0] = c[0, 0]``, cells outside the matrix
-    are ``inf``; ``combine`` is ``np.add`` (DTW) or ``np.maximum`` (Fréchet).
-
-    The sweep goes over anti-diagonals ``k = i + j``. The costs are computed block by block
-    of diagonals, laid out as ``K[k, b, i] = c[i, k - i]`` (``inf`` where ``k - i`` is outside
-    ``[0, m)``) from a sliding-window view of the padded reference, so each block stays in
-    the cache. A diagonal's values live in one of three rotating buffers indexed by
-    ``i + 1`` (column 0 is the ``i = -1`` border, always ``inf``).
-
-    Args:
-        pred: ``[B, n, D]``.
-        ref: ``[B, m, D]``.
-
-    Returns:
-        ``[B]`` values ``D[n - 1, m - 1]``.
-    """
-    b, n, dim = pred.shape
-    m = ref.shape[1]
-    n_diag = n + m - 1
-    # padded[b, s + n - 1] = ref[b, s]; windows[b, k, d, w] = padded[b, k + w, d], so
-    # windows[b, k, d, n - 1 - i] = ref[b, k - i, d] (inf outside the reference).
-    padded = np.full((b, m + 2 * (n - 1), dim), np.inf)
-    padded[:, n - 1 : n - 1 + m] = ref
-    windows = np.lib.stride_tricks.sliding_window_view(padded, n, axis=1)[..., ::-1]
-    pred_t = np.ascontiguousarray(pred.transpose(2, 0, 1))  # [D, B, n]
-    block = max(8, _BLOCK_BYTES // (8 * b * n))
-
-    bufs = [np.full((b, n + 1), np.inf) for _ in range(3)]
-    tmp = np.empty((b, n))
-    for k0 in range(0, n_diag, block):
-        k1 = min(k0 + block, n_diag)
-        i0 = max(0, k0 - m + 1)
-        i1 = min(k1, n - 1) + 1  # includes one cell past the block's last valid i
-        costs = np.zeros((k1 - k0, b, i1 - i0))  # [k, B, i]
-        diff = np.empty_like(costs)
-        for d in range(dim):
-            np.subtract(
-                windows[:, k0:k1, d, i0:i1].transpose(1, 0, 2), pred_t[d, :, i0:i1], out=diff
-            )
-            np.multiply(diff, diff, out=diff)
-            costs += diff
-        np.sqrt(costs, out=costs)
-        if b == 1:  # one pair: the sweep on 1-D views (slicing them costs less)
-            _sweep(costs[:, 0], k0, k1, i0, n, m, [x[0] for x in bufs], tmp[0], combine)
-        else:
-            _sweep(costs, k0, k1, i0, n, m, bufs, tmp, combine)
-    return bufs[(n_diag - 1) % 3][:, n].copy()
-
-
-def _sweep(costs: np.ndarray, k0: int, k1: int, i0: int, n: int, m: int,
-           bufs: list[np.ndarray], tmp: np.ndarray, combine: Callable) -> None:
-    """:func:`_dp_chunk`'s sweep over the diagonals ``k0..k1-1``: ``costs`` [k, (B,) i], the
-    three rotating diagonal buffers ``bufs`` [(B,) n + 1] and ``tmp`` [(B,) n], either with a
-    batch axis or, for one pair, 1-D (the same operations on the same cells, fewer dimensions
-    to slice). The last axis is the cell index ``i``."""
-    minimum = np.minimum
-    for k in range(k0, k1):
-        new, prev1, prev2 = bufs[k % 3], bufs[(k - 1) % 3], bufs[(k - 2) % 3]
-        c = costs[k - k0]
-        if k == 0:
-            new[..., 1] = c[..., 0]
-            continue
-        lo = k - m + 1 if k >= m else 0
-        # One cell beyond the last valid i, so the next two diagonals read inf there.
-        hi = (k + 1 if k + 1 < n - 1 else n - 1) + 1
-        t = tmp[..., : hi - lo]
-        minimum(prev1[..., lo + 1 : hi + 1], prev1[..., lo:hi], out=t)
-        minimum(t, prev2[..., lo:hi], out=t)
-        combine(c[..., lo - i0 : hi - i0], t, out=new[..., lo + 1 : hi + 1])
+    return warping_batch(np.ascontiguousarray(pred), np.ascontiguousarray(ref), frechet)
 
 
 def dtw_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -169,7 +84,7 @@ def dtw_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
     Returns:
         ``[N]`` float64: see :func:`dtw`.
     """
-    return _batched_dp(_as_batch(pred, "pred"), _as_batch(ref, "ref"), np.add)
+    return _warping(_as_batch(pred, "pred"), _as_batch(ref, "ref"), False)
 
 
 def frechet_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -182,7 +97,7 @@ def frechet_batch(pred: np.ndarray, ref: np.ndarray) -> np.ndarray:
     Returns:
         ``[N]`` float64: see :func:`frechet`.
     """
-    return _batched_dp(_as_batch(pred, "pred"), _as_batch(ref, "ref"), np.maximum)
+    return _warping(_as_batch(pred, "pred"), _as_batch(ref, "ref"), True)
 
 
 def dtw(pred: np.ndarray, ref: np.ndarray) -> float:
