@@ -75,3 +75,17 @@ def test_a_reworded_comment_in_the_simulator_keeps_the_fingerprint(tmp_path, mon
         assert fingerprint.sim_fingerprint() != before
     finally:
         fingerprint.sim_fingerprint.cache_clear()
+
+
+def test_the_modules_the_envs_import_count_and_the_rest_do_not():
+    """Beyond sim/ and envs/, the fingerprint hashes what they import, transitively and lazily
+    imported included: the demos' loading (data/), the writing judges' DTW (metrics/trajectory.py
+    imports metrics/warping.py inside a function). Training code, which no env runs, stays out
+    (a change there leaves every execution result current)."""
+    names = {name for name, _ in fingerprint._sim_files()}
+    for needed in ("envs/writing/judge.py", "execution/rollout.py", "metrics/trajectory.py",
+                   "metrics/warping.py", "data/resample.py", "envs/robotasks/scoop/kernels.py"):
+        assert needed in names, needed
+    for other in ("harness/loop.py", "learning/node.py", "methods/hn.py", "execution/evaluate.py",
+                  "envs/robotasks/scoop/doc.py"):
+        assert other not in names, other

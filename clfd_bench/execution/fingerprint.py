@@ -37,22 +37,56 @@ def _runs(path: Path) -> bool:
     return path.name not in _NOT_RUN
 
 
+def _module_file(pkg: Path, name: str) -> Path | None:
+    """The file of module `name` (``clfd_bench.metrics.trajectory``) under `pkg`, the
+    ``clfd_bench`` folder, or None when it is not one of ours."""
+    parts = name.split(".")
+    if parts[0] != pkg.name:
+        return None
+    base = pkg.joinpath(*parts[1:])
+    for path in (base.with_suffix(".py"), base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def _imported(pkg: Path, path: Path) -> set[Path]:
+    """The files of the ``clfd_bench`` modules that the module at `path` imports, wherever in it
+    (a function's lazy import too): for ``from M import N``, N's file when N is a module, else
+    M's. Read from the source (nothing is imported)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            subs = {_module_file(pkg, f"{node.module}.{a.name}") for a in node.names} - {None}
+            out |= subs or {_module_file(pkg, node.module)}
+        elif isinstance(node, ast.Import):
+            out |= {_module_file(pkg, a.name) for a in node.names}
+    return out - {None}
+
+
 def _sim_files() -> Iterator[tuple[str, Path]]:
     """Files that define the simulator: its code, the task scenes and specs, robot assets, as
     ``(name, path)``. The code is every module of ``clfd_bench/sim`` and ``clfd_bench/envs``,
     sub-folders included (each RoboTasks task has its own), that an env runs (`_NOT_RUN` lists
-    those it does not). The name is the same in a source checkout and in an installed wheel
-    (``sim/robot.py``, ``envs/robotasks/openbox/scene.py``, ``tasks/openbox.xml``), so a run
-    executed in one is current in the other (the wheel keeps ``tasks/`` under
+    those it does not), ``execution/rollout.py`` (what runs after the trajectory decides
+    success too), and every other module of the package these import, transitively (the
+    demos' loading and resampling, the writing judges' DTW and thresholds): a change in any of
+    them can change a verdict. The name is the same in a source checkout and in an installed
+    wheel (``sim/robot.py``, ``envs/robotasks/openbox/scene.py``, ``tasks/openbox.xml``), so a
+    run executed in one is current in the other (the wheel keeps ``tasks/`` under
     ``clfd_bench/_share/``)."""
     from clfd_bench.resources import resource_root
 
     pkg = Path(__file__).resolve().parent.parent
-    for folder in (pkg / "sim", pkg / "envs"):
-        for path in sorted(p for p in folder.rglob("*.py") if _runs(p)):
-            yield path.relative_to(pkg).as_posix(), path
-    # what runs after the trajectory decides success too
-    yield "execution/rollout.py", pkg / "execution" / "rollout.py"
+    code = {p for folder in (pkg / "sim", pkg / "envs") for p in folder.rglob("*.py") if _runs(p)}
+    code.add(pkg / "execution" / "rollout.py")
+    todo = list(code)
+    while todo:
+        for dep in _imported(pkg, todo.pop()) - code:
+            code.add(dep)
+            todo.append(dep)
+    for path in sorted(code, key=lambda p: p.relative_to(pkg).as_posix()):
+        yield path.relative_to(pkg).as_posix(), path
     for name in ("tasks", "assets"):
         root = resource_root(name)
         for path in sorted(p for p in root.rglob("*") if p.is_file() and p.suffix != ".md"):
@@ -105,9 +139,10 @@ def _hashed_bytes(path: Path) -> bytes:
 @functools.lru_cache(maxsize=1)
 def sim_fingerprint() -> str:
     """sha256 (hex, first 16 digits) of the simulator: the modules of ``clfd_bench/sim`` and
-    ``clfd_bench/envs`` an env runs (`_sim_files`), ``clfd_bench/execution/rollout.py``,
-    ``tasks/`` and ``assets/`` and the mujoco, mink, gymnasium versions; of the code, what
-    runs (`_hashed_bytes`: comments and docstrings are left out). Execution results are
+    ``clfd_bench/envs`` an env runs, ``clfd_bench/execution/rollout.py`` and the package's
+    modules they import (`_sim_files`), ``tasks/`` and ``assets/`` and the mujoco, mink,
+    gymnasium versions; of the code, what runs (`_hashed_bytes`: comments and docstrings are
+    left out). Execution results are
     reused only under the same fingerprint."""
     digest = hashlib.sha256()
     for dist in ("mujoco", "mink", "gymnasium"):
