@@ -69,7 +69,8 @@ def _sim_files() -> Iterator[tuple[str, Path]]:
     ``(name, path)``. The code is every module of ``clfd_bench/sim`` and ``clfd_bench/envs``,
     sub-folders included (each RoboTasks task has its own), that an env runs (`_NOT_RUN` lists
     those it does not), ``execution/rollout.py`` (what runs after the trajectory decides
-    success too), and every other module of the package these import, transitively (the
+    success too), and every other module of the package these import, transitively (but
+    not those `_NOT_RUN` names) (the
     demos' loading and resampling, the writing judges' DTW and thresholds): a change in any of
     them can change a verdict. The name is the same in a source checkout and in an installed
     wheel (``sim/robot.py``, ``envs/robotasks/openbox/scene.py``, ``tasks/openbox.xml``), so a
@@ -83,6 +84,8 @@ def _sim_files() -> Iterator[tuple[str, Path]]:
     todo = list(code)
     while todo:
         for dep in _imported(pkg, todo.pop()) - code:
+            if not _runs(dep):  # e.g. env.py builds its docstring with doc.py
+                continue
             code.add(dep)
             todo.append(dep)
     for path in sorted(code, key=lambda p: p.relative_to(pkg).as_posix()):
