@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+import pytest
+
 from clfd_bench.cli import bench_sim
 from clfd_bench.execution.bench import RATIO_TARGET
 
@@ -24,3 +26,11 @@ def test_bench_sim_json(capsys):
     assert row["ratio_target"] == RATIO_TARGET == 1.4
     assert row["meets_target"] == (row["ratio"] <= 1.4)
     assert "CPUs" in out["machine"]
+
+
+def test_an_unknown_env_id_is_refused_before_anything_runs(capsys):
+    args = argparse.Namespace(env=["clfd/HelloWorld-r-v3", "clfd/Scop-v3"], demo=0, repeats=1,
+                              json=False)
+    with pytest.raises(SystemExit, match=r"'clfd/Scop-v3' \(did you mean 'clfd/Scoop-v3'\?\)"):
+        bench_sim._run(args)
+    assert capsys.readouterr().out == ""  # not even the table's header

@@ -27,6 +27,7 @@ def _run(args: argparse.Namespace) -> int:
         env_ids = list(env_specs())
     else:
         env_ids = args.env or list(DEFAULT_ENVS)
+        _check_ids(env_ids)
     note = machine_note()
     rows: list[dict[str, Any]] = []
     errors: dict[str, str] = {}
@@ -51,6 +52,21 @@ def _run(args: argparse.Namespace) -> int:
     else:
         print(f"machine: {note}")
     return 1 if errors else 0
+
+
+def _check_ids(env_ids: list[str]) -> None:
+    """SystemExit naming every unknown id, the closest valid one and all valid ids, before
+    anything runs."""
+    import clfd_bench.envs  # noqa: F401 - registers the ids
+    from clfd_bench.envs.registration import registered_env_ids
+    from clfd_bench.harness.run_config import suggest
+
+    valid = registered_env_ids()
+    unknown = [i for i in env_ids if i not in valid]
+    if unknown:
+        named = "; ".join(f"{i!r}{suggest(i, valid)}" for i in unknown)
+        raise SystemExit(f"clfd-bench bench sim: unknown env id {named}. Valid ids "
+                         f"(or --env all): {', '.join(valid)}")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
