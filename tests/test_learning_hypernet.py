@@ -107,20 +107,29 @@ def test_sampled_regulariser_is_the_follow_ups_stochastic_one():
     assert every == pytest.approx(float(per_task.mean()), rel=1e-12)
 
 
-def test_lookahead_is_the_step_adam_takes():
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_lookahead_is_the_step_adam_takes(dtype):
+    """float32: the compiled pass; float64: the same formula in torch. Both against the step
+    torch's Adam then takes, from its first step (no state yet) on."""
     torch.manual_seed(0)
-    params = [torch.nn.Parameter(torch.randn(20, 3)), torch.nn.Parameter(torch.randn(7))]
+    params = [torch.nn.Parameter(torch.randn(20, 3, dtype=dtype)),
+              torch.nn.Parameter(torch.randn(7, dtype=dtype))]
     opt = torch.optim.Adam(params, lr=0.01)
-    for _ in range(3):
+    buffers = [torch.full_like(p, float("nan")) for p in params]
+    for _ in range(4):
         for p in params:
-            p.grad = torch.randn_like(p)
-        predicted = {f: adam_lookahead(opt, params, fused=f) for f in (True, False)}
+            p.grad = torch.randn_like(p) * 10.0 ** float(torch.randint(-4, 2, ()))
+        predicted = adam_lookahead(opt, params, out=buffers)
+        assert all(a is b for a, b in zip(predicted, buffers, strict=True))
+        fresh = adam_lookahead(opt, params)
         before = [p.detach().clone() for p in params]
         opt.step()
         taken = [p.detach() - b for p, b in zip(params, before, strict=True)]
-        for deltas in predicted.values():
-            for a, b in zip(deltas, taken, strict=True):
-                assert torch.allclose(a, b, atol=1e-7, rtol=1e-4)
+        for a, b, c in zip(predicted, taken, fresh, strict=True):
+            assert torch.equal(a, c)
+            assert torch.allclose(a, b, atol=1e-7, rtol=1e-4)
+    params[1].grad = None
+    assert adam_lookahead(opt, params, out=buffers)[1].eq(0).all()
 
 
 def _trajectory_of(net, spec, y0, t):

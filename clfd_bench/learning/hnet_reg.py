@@ -40,42 +40,48 @@ REG_MODES = ("all", "batched", "sampled")
 
 @torch.no_grad()
 def adam_lookahead(
-    optimizer: torch.optim.Adam, params: Sequence[Tensor], fused: bool | None = None
+    optimizer: torch.optim.Adam, params: Sequence[Tensor], out: Sequence[Tensor] | None = None
 ) -> list[Tensor]:
     """The step ``dh`` the Adam optimiser would now take on ``params`` (detached).
 
     Uses the current ``.grad`` and the optimiser's moment estimates; the optimiser's state is
-    not modified. This is exactly the update ``torch.optim.Adam.step()`` would apply:
+    not modified. The update of ``torch.optim.Adam.step()``:
     ``m' = b1 m + (1-b1) g``, ``v' = b2 v + (1-b2) g^2``,
-    ``dh = -lr / (1-b1^k) * m' / (sqrt(v') / sqrt(1-b2^k) + eps)`` with ``k`` the next step.
-    (The original code's copy of hypnettorch's ``calc_delta_theta`` adds ``eps`` before the
-    bias correction, ``(sqrt(v') + eps) / sqrt(1-b2^k)``: its effective ``eps`` is
-    ``eps / sqrt(1-b2^k)``, 31.6x ours at step 1 with ``b2 = 0.999``, falling to ~1x after a
-    few thousand steps. With ``eps = 1e-8`` the two steps differ by up to ~1e-6 relative
-    (where ``sqrt(v'/(1-b2^k))`` is ~3e-4 or more; more for smaller gradients). We follow
-    ``torch.optim.Adam``, whose step the look-ahead must reproduce.)
+    ``dh = -lr / (1-b1^k) * m' / (sqrt(v') / sqrt(1-b2^k) + eps)`` with ``k`` the next step,
+    in float32 as torch's kernel, up to its rounding (torch may fuse a multiply-add; the
+    difference is a few ulp of ``dh``). (The original code's copy of hypnettorch's
+    ``calc_delta_theta`` adds ``eps`` before the bias correction, ``(sqrt(v') + eps) /
+    sqrt(1-b2^k)``: its effective ``eps`` is ``eps / sqrt(1-b2^k)``, 31.6x ours at step 1 with
+    ``b2 = 0.999``, falling to ~1x after a few thousand steps. With ``eps = 1e-8`` the two steps
+    differ by up to ~1e-6 relative (where ``sqrt(v'/(1-b2^k))`` is ~3e-4 or more; more for
+    smaller gradients). We follow ``torch.optim.Adam``, whose step the look-ahead predicts.)
+
+    float32 parameters take one compiled pass (:func:`~clfd_bench.learning.adam_kernel.
+    adam_delta`: gradient and moments read, ``dh`` written), others the same formula in torch.
 
     Args:
         optimizer: a plain Adam (no amsgrad, no weight decay).
         params: the parameters (managed by ``optimizer``) to compute the step for.
-        fused: use torch's fused Adam kernel on copies (one pass over memory; default: when
-            available) or the explicit formula (same values).
+        out: tensors to write ``dh`` into (one per parameter, its shape and dtype), e.g. kept
+            across the iterations of a task; new ones when None.
 
     Returns:
-        One tensor per parameter; zeros for parameters without a gradient.
+        One tensor per parameter (``out``'s when given); zeros for parameters without a
+        gradient.
     """
+    from clfd_bench.learning.adam_kernel import adam_delta
+
     group_of = {}
     for group in optimizer.param_groups:
         for p in group["params"]:
             group_of[id(p)] = group
-    if fused is None:
-        fused = hasattr(torch, "_fused_adam_")
-    deltas: list[Tensor | None] = []
-    batches: dict[tuple, list[tuple[int, Tensor]]] = {}
+    deltas: list[Tensor] = []
     for idx, p in enumerate(params):
-        deltas.append(None)
-        if p.grad is None:
-            deltas[idx] = torch.zeros_like(p)
+        delta = torch.empty_like(p) if out is None else out[idx]
+        deltas.append(delta)
+        g = p.grad
+        if g is None:
+            delta.zero_()
             continue
         group = group_of.get(id(p))
         if group is None:
@@ -84,37 +90,20 @@ def adam_lookahead(
             raise ValueError("adam_lookahead supports plain Adam (no amsgrad, weight decay)")
         state = optimizer.state.get(p, {})
         step = (int(state["step"]) if state else 0) + 1
-        key = (float(group["lr"]), *group["betas"], group["eps"], step)
-        batches.setdefault(key, []).append((idx, p))
-    for (lr, beta1, beta2, eps, step), items in batches.items():
-        grads = [p.grad for _, p in items]
-        exp_avg, exp_avg_sq = [], []
-        for _, p in items:
-            state = optimizer.state.get(p, {})
-            if state:
-                exp_avg.append(state["exp_avg"].clone())
-                exp_avg_sq.append(state["exp_avg_sq"].clone())
-            else:
-                exp_avg.append(torch.zeros_like(p))
-                exp_avg_sq.append(torch.zeros_like(p))
-        if fused:
-            new = [p.detach().clone() for _, p in items]
-            steps = [torch.tensor(float(step)) for _ in items]
-            torch._fused_adam_(
-                new, grads, exp_avg, exp_avg_sq, [], steps, lr=lr, beta1=beta1, beta2=beta2,
-                weight_decay=0.0, eps=eps, amsgrad=False, maximize=False,
-            )
-            for (idx, p), q in zip(items, new, strict=True):
-                deltas[idx] = q.sub_(p)
-            continue
-        bc1 = 1 - beta1**step
+        lr, (beta1, beta2), eps = float(group["lr"]), group["betas"], group["eps"]
+        m = state["exp_avg"] if state else torch.zeros_like(p)
+        v = state["exp_avg_sq"] if state else torch.zeros_like(p)
+        step_size = lr / (1 - beta1**step)
         bc2_sqrt = math.sqrt(1 - beta2**step)
-        for (idx, _), g, m, v in zip(items, grads, exp_avg, exp_avg_sq, strict=True):
-            m.lerp_(g, 1 - beta1)
-            v.mul_(beta2).addcmul_(g, g, value=1 - beta2)
-            denom = v.sqrt_().div_(bc2_sqrt).add_(eps)
-            deltas[idx] = m.div_(denom).mul_(-lr / bc1)
-    return deltas  # type: ignore[return-value]
+        tensors = (g, m, v, delta)
+        if all(t.dtype == torch.float32 and t.is_contiguous() for t in tensors):
+            adam_delta(*(t.view(-1).numpy() for t in tensors), beta1, beta2, step_size,
+                       bc2_sqrt, eps)
+            continue
+        m = m.lerp(g, 1 - beta1)
+        denom = (v * beta2).addcmul_(g, g, value=1 - beta2).sqrt_().div_(bc2_sqrt).add_(eps)
+        torch.mul(m.div_(denom), -step_size, out=delta)
+    return deltas
 
 
 def output_regularizer(

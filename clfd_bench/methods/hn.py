@@ -37,6 +37,7 @@ class HypernetworkMethod(Method):
         self.embeddings = nn.ParameterList()
         self._targets: Tensor | None = None
         self._past: Tensor | None = None
+        self._delta: list[Tensor] | None = None  # the look-ahead's buffers during a task
 
     def _build_hnet(self) -> nn.Module:
         return HyperNetwork(
@@ -63,13 +64,15 @@ class HypernetworkMethod(Method):
         self._targets = self.hnet(self._past).detach()  # f(e_l, h*) for l < task
 
     def on_task_end(self, task: int, data: TaskData) -> None:
-        self._past = self._targets = None
+        self._past = self._targets = self._delta = None
 
     def extra_loss(self, ctx: StepContext) -> Tensor | None:
         if self._targets is None or self.cfg.beta == 0:
             return None
         params = self.hnet.regularized
-        delta = adam_lookahead(ctx.optimizer, params)
+        if self._delta is None:  # one allocation per task, not one per iteration
+            self._delta = [torch.empty_like(p, requires_grad=False) for p in params]
+        delta = adam_lookahead(ctx.optimizer, params, out=self._delta)
         reg = output_regularizer(
             self.hnet, self._past, self._targets, delta, mode=self.cfg.hnet_reg,
             samples=self.cfg.hnet_reg_samples, generator=ctx.generator,
