@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from clfd_bench.compiled import njit
 
 
 # error_model="numpy": a division by zero gives inf/nan as in torch, and no check of the
 # divisor in the loop, which would keep it from being vectorised (12 ms -> 2.7 ms here).
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy")
 def adam_delta(grad: np.ndarray, exp_avg: np.ndarray, exp_avg_sq: np.ndarray, out: np.ndarray,
                beta1: float, beta2: float, step_size: float, bc2_sqrt: float,
                eps: float) -> None:

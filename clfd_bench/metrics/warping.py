@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from clfd_bench.compiled import njit
 
-@numba.njit(cache=True, nogil=True)
+
+@njit(nogil=True)
 def _pair(pred: np.ndarray, ref: np.ndarray, frechet: bool, prev: np.ndarray,
           cur: np.ndarray) -> float:
     """``D[n-1, m-1]`` of one pair: ``pred`` [n, D], ``ref`` [m, D]; ``prev``, ``cur`` [m + 1]
@@ -49,7 +50,7 @@ def _pair(pred: np.ndarray, ref: np.ndarray, frechet: bool, prev: np.ndarray,
     return prev[m]
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def warping_batch(pred: np.ndarray, ref: np.ndarray, frechet: bool) -> np.ndarray:
     """DTW (``frechet=False``) or discrete Fréchet distance of each pair.
 

@@ -13,18 +13,19 @@ A box is [2, 3]: its low and high corner; a point is in it when low <= p <= high
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from clfd_bench.compiled import njit
 
-@numba.njit(cache=True, nogil=True)
+
+@njit(nogil=True)
 def _within(x: float, y: float, z: float, box: np.ndarray) -> bool:
     """Whether the point (x, y, z) lies in `box` (branch-free: `&`, not `and`)."""
     return ((box[0, 0] <= x) & (x <= box[1, 0]) & (box[0, 1] <= y) & (y <= box[1, 1])
             & (box[0, 2] <= z) & (z <= box[1, 2]))
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def in_box(points: np.ndarray, box: np.ndarray) -> np.ndarray:
     """Whether each point of `points` [K, 3] lies in `box` [2, 3]: bool [K]."""
     out = np.empty(points.shape[0], dtype=np.bool_)
@@ -33,7 +34,7 @@ def in_box(points: np.ndarray, box: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def classify(local: np.ndarray, outer: np.ndarray, cavity: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, int, int, int]:
     """The sites `local` [K, 3] (scoop frame) against the bowl's outside box `outer` [2, 3] and
@@ -60,7 +61,7 @@ def classify(local: np.ndarray, outer: np.ndarray, cavity: np.ndarray
     return inside, solid, n_outer, n_inside, n_solid
 
 
-@numba.njit(cache=True, nogil=True)
+@njit(nogil=True)
 def entered(inside: np.ndarray, solid: np.ndarray, prev: np.ndarray, cavity: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """The sites in the cavity now (`inside` [K]) that were not at the previous pose (`prev`
