@@ -109,14 +109,14 @@ BUNDLES: dict[str, Bundle] = {
         Bundle(
             name="helloworld-fast",
             file="helloworld-fast.tar.xz",
-            sha256="cbca88cecf78da3b0f4dc4d66949fc4e1a01433e16113e18cd4e8b27b4bb0ab4",
+            sha256="5651f23f078cd4d02cd58ef3687b2a33acbe829e72a426dfaaf5f3aad903748a",
             description="the README's main job: HelloWorld (7 letters), all 7 methods, "
                         "`fast` profile, seed 0, order 0, executed on the simulated Panda",
             dataset="helloworld",
             profile="fast",
             methods=("sg", "ft", "rep", "si", "mas", "hn", "chn"),
             made_with_version="0.1.0",
-            size=20542964,
+            size=20559480,
         ),
     )
 }
