@@ -9,7 +9,9 @@ the paper) and times ``--iterations`` training iterations on task 0 and on task 
 short task 0, so the regularisers of SI, MAS, HN and CHN are active). It prints iterations per
 second and the seconds one task of the paper's budget (15 000 iterations on LASA, 40 000 on
 HelloWorld) would take at that speed, next to the original implementation's speed measured
-on this machine class (HN on LASA task 0: ~35 it/s; SG: ~27 it/s). ``--node`` times another
+once on this machine class (HN on LASA task 0: ~35 it/s; SG: ~27 it/s). The machine's speed
+moves by up to 2x within an hour, so compare with the released code in the same run:
+``python eval/bench_original.py`` times both, alternately. ``--node`` times another
 target network (``--node s``: the stable NODE), ``--set solver_backend=autograd`` the same
 mathematics without the fused solvers.
 
