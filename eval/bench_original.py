@@ -96,31 +96,36 @@ def _args(seq_file: str, data_dir: str, iterations: int, **arch) -> argparse.Nam
     return argparse.Namespace(**{**base, **arch})
 
 
+def _target_node(arch: str, own_weights: bool):
+    """The released code's target network (2-D state and time in, ELU, hidden widths `arch`,
+    e.g. "100,100,100"; its own weights for SG, none for a hypernetwork's) and the NODE
+    around it, as its ``train_all`` builds them."""
+    from imitation_cl.model.hypernetwork import TargetNetwork, str_to_act, str_to_ints
+    from imitation_cl.model.node import NODE
+
+    tnet = TargetNetwork(n_in=3, n_out=2, hidden_layers=str_to_ints(arch),
+                         activation_fn=str_to_act("elu"), use_bias=True,
+                         no_weights=not own_weights, init_weights=None, dropout_rate=-1,
+                         use_batch_norm=False, bn_track_stats=False, distill_bn_stats=False,
+                         out_fn=None, device="cpu")
+    return tnet, NODE(tnet, explicit_time=1, method="dopri5")
+
+
 def original_hn(ref, seq_file: str, data_dir: str, iterations: int, warmup: int) -> dict:
     """The released HN's it/s on task 0 (``iterations``) and task 1 (after ``warmup`` on 0)."""
-    from imitation_cl.model.hypernetwork import (
-        HyperNetwork,
-        TargetNetwork,
-        str_to_act,
-        str_to_ints,
-    )
-    from imitation_cl.model.node import NODE
+    from imitation_cl.model.hypernetwork import HyperNetwork, TargetNetwork, str_to_ints
 
     out = {}
     for timed_task in (0, 1):
         args = _args(seq_file, data_dir, iterations, tnet_arch="100,100,100",
                      hnet_arch="200,200,200", task_emb_dim=256, beta=0.005)
         torch.manual_seed(args.seed)
-        shapes = TargetNetwork.weight_shapes(n_in=3, n_out=2, hidden_layers=[100, 100, 100],
+        shapes = TargetNetwork.weight_shapes(n_in=3, n_out=2,
+                                             hidden_layers=str_to_ints(args.tnet_arch),
                                              use_bias=True)
         hnet = HyperNetwork(layers=str_to_ints(args.hnet_arch), te_dim=args.task_emb_dim,
                             target_shapes=shapes, dropout_rate=-1.0, device="cpu")
-        tnet = TargetNetwork(n_in=3, n_out=2, hidden_layers=[100, 100, 100],
-                             activation_fn=str_to_act("elu"), use_bias=True, no_weights=True,
-                             init_weights=None, dropout_rate=-1, use_batch_norm=False,
-                             bn_track_stats=False, distill_bn_stats=False, out_fn=None,
-                             device="cpu")
-        node = NODE(tnet, explicit_time=1, method="dopri5")
+        tnet, node = _target_node(args.tnet_arch, own_weights=False)
         for task in range(timed_task + 1):
             args.num_iter = iterations if task == timed_task else warmup
             ref.train_task(args, task, hnet, tnet, node, "cpu")
@@ -130,17 +135,9 @@ def original_hn(ref, seq_file: str, data_dir: str, iterations: int, warmup: int)
 
 def original_sg(ref, seq_file: str, data_dir: str, iterations: int) -> float:
     """The released single NODE's (SG's) it/s on task 0."""
-    from imitation_cl.model.hypernetwork import TargetNetwork, str_to_act
-    from imitation_cl.model.node import NODE
-
     args = _args(seq_file, data_dir, iterations, tnet_arch="1000,1000,1000")
     torch.manual_seed(args.seed)
-    tnet = TargetNetwork(n_in=3, n_out=2, hidden_layers=[1000, 1000, 1000],
-                         activation_fn=str_to_act("elu"), use_bias=True, no_weights=False,
-                         init_weights=None, dropout_rate=-1, use_batch_norm=False,
-                         bn_track_stats=False, distill_bn_stats=False, out_fn=None,
-                         device="cpu")
-    node = NODE(tnet, explicit_time=1, method="dopri5")
+    tnet, node = _target_node(args.tnet_arch, own_weights=True)
     ref.train_task(args, 0, tnet, node, "cpu")
     return _rate()
 

@@ -9,9 +9,7 @@ equals the plain Python loop's to the bit, whatever order the cells are visited 
 maximum are exact; ``tests/test_metrics_trajectory.py``). Compiled without fast-math, so no
 reassociation or fused multiply-add changes a rounding.
 
-numba compiles each kernel on first use (about a second) and keeps the machine code in its
-on-disk cache (``__pycache__`` beside this file, or numba's user cache directory), so later
-processes, e.g. the harness's workers, load it in milliseconds. Imported lazily by
+Compiled on first use and cached on disk (:mod:`clfd_bench.compiled`). Imported lazily by
 :mod:`clfd_bench.metrics.trajectory`, so importing the package does not import numba.
 """
 
