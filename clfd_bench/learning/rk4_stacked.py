@@ -1,0 +1,398 @@
+"""Classic RK4 through R independent MLP vector fields at once (batched matrix products).
+
+The stacked analogue of :mod:`~clfd_bench.learning.rk4_fused`: R fields that share their
+architecture but not their weights (e.g. R training runs that differ only in seed), each with
+its own batch of B states and its own per-sample output times, integrated in ONE sweep. Every
+layer of every evaluation is one ``torch.baddbmm`` / ``torch.bmm`` over the R fields, so R
+runs cost about as many operations as one; for the small networks of this project the cost is
+dominated by per-operation overhead, so R runs take little longer than one.
+
+Row ``r`` of :func:`rk4_mlp_stacked` is :func:`~clfd_bench.learning.rk4_fused.rk4_mlp` on row
+``r`` of every argument, with the same RK4 arithmetic in the same order, for times shared by
+every sample (Python-float steps, as ``rk4_mlp`` takes them for ``[K]`` times) or per sample
+(``[R, B, K]``); field ``r`` may use only its first ``rows[r]`` states (the rest padding).
+The backward pass is hand-written as in ``rk4_fused``: one reverse sweep, then each field's
+weight gradients summed over its own states exactly as ``MLPTape.weight_grads`` sums them
+(one matrix product per layer and field). So the only place where a row can differ from
+``rk4_mlp`` is inside a batched product (``bmm`` against ``mm``): on CPU with BLAS the
+slices are usually bit-identical, and :func:`stacks_exactly` checks it for given shapes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor
+
+from clfd_bench.learning.fused_mlp import _ACT, FUSED_ACTIVATIONS, _act_backward
+
+__all__ = [
+    "FUSED_ACTIVATIONS",
+    "StackedMLPTape",
+    "rk4_mlp_stacked",
+    "stacked_sweep_forward",
+    "stacked_sweep_reverse",
+]
+
+
+class StackedMLPTape:
+    """Evaluations of R independent MLP vector fields, recorded for a later reverse pass.
+
+    The batched analogue of :class:`~clfd_bench.learning.fused_mlp.MLPTape`; every tensor has a
+    leading dimension R (one slice per field).
+
+    Args:
+        w0y: ``[R, H, D]`` first-layer weights on the state.
+        w0t: ``[R, H]`` first-layer weights on the time, or None.
+        b0: ``[R, H]`` first-layer bias.
+        rest: ``[W1 [R, out, in], b1 [R, out], ..., WL, bL]``.
+        act: hidden activation, one of :data:`FUSED_ACTIVATIONS`.
+        record: keep activations (needed for :meth:`vjp`).
+        rows: field ``r``'s states are the first ``rows[r]`` of B (None: all B); the weight
+            gradients sum over those only.
+    """
+
+    def __init__(self, w0y: Tensor, w0t: Tensor | None, b0: Tensor, rest: Sequence[Tensor],
+                 act: str, record: bool, rows: Sequence[int] | None = None):
+        if act not in FUSED_ACTIVATIONS:
+            raise ValueError(f"fused solvers support activations {FUSED_ACTIVATIONS}, not {act!r}")
+        self.w0y, self.w0t, self.b0, self.act = w0y, w0t, b0, act
+        self.weights = list(rest[0::2])  # [R, out, in]
+        self.biases = list(rest[1::2])  # [R, out]
+        # transposed weights made contiguous once: bmm is markedly faster on them than on
+        # transposed views (unlike mm, which passes a transpose flag to BLAS)
+        self._weights_t = [w.transpose(1, 2).contiguous() for w in self.weights]  # [R, in, out]
+        self._w0y_t = w0y.transpose(1, 2).contiguous()  # [R, D, H]
+        self._b0 = b0.unsqueeze(1)  # [R, 1, H]
+        self._batch = -1  # B of the biases below, expanded to [R, B, out] (faster baddbmm)
+        self._full_biases: list[Tensor] = []
+        self._full_b0 = self._b0
+        self._w0t = None if w0t is None else w0t.unsqueeze(1)  # [R, 1, H]
+        self._act_fn = _ACT[act]
+        self.record = record
+        self.rows = None if rows is None else [int(r) for r in rows]
+        self.acts: list[list[Tensor]] = []  # per evaluation: [input u, hidden activations...]
+        self.times: list[float | Tensor] = []  # per evaluation: its time (float or [R, B, 1])
+        self._grad_outs: list[list[Tensor]] = [[] for _ in range(len(self.weights) + 1)]
+        self._order: list[int] = []
+
+    def bias(self, t: float | Tensor) -> Tensor:
+        """First-layer bias at time ``t`` (a float, or ``[R, B, 1]``): ``[R, 1|B, H]``."""
+        if self._w0t is None:
+            return self._b0
+        if isinstance(t, float):
+            return torch.add(self._b0, self._w0t, alpha=t)
+        return self._b0 + t * self._w0t
+
+    def __call__(self, t: float | Tensor, u: Tensor, bias: Tensor | None = None,
+                 record: bool = True) -> Tensor:
+        """``f(t, u)`` for ``t`` a float or ``[R, B, 1]``, ``u: [R, B, D]``; ``bias``
+        (``[R, B, H]`` or ``[R, 1, H]``) may pass a precomputed :meth:`bias`; ``record=False``
+        keeps this evaluation off the tape."""
+        act = self._act_fn
+        if u.shape[1] != self._batch:
+            self._expand_biases(u.shape[1])
+        if bias is None:
+            bias = self._full_b0 if self._w0t is None else self.bias(t)
+        if bias.shape[1] != u.shape[1]:
+            bias = bias.expand(u.shape[0], u.shape[1], bias.shape[2])
+        z = act(torch.baddbmm(bias, u, self._w0y_t))
+        a = [u, z]
+        n = len(self._weights_t)
+        for j in range(n - 1):
+            z = act(torch.baddbmm(self._full_biases[j], z, self._weights_t[j]))
+            a.append(z)
+        if self.record and record:
+            self.acts.append(a)
+            self.times.append(t)
+        return torch.baddbmm(self._full_biases[n - 1], z, self._weights_t[n - 1])
+
+    def _expand_biases(self, batch: int) -> None:
+        r = self.b0.shape[0]
+        self._full_biases = [b.unsqueeze(1).expand(r, batch, b.shape[1]).contiguous()
+                             for b in self.biases]
+        self._full_b0 = self._b0.expand(r, batch, self._b0.shape[2]).contiguous()
+        self._batch = batch
+
+    @property
+    def num_evals(self) -> int:
+        """Evaluations recorded so far (the index of the next one)."""
+        return len(self.acts)
+
+    def start_reverse(self) -> None:
+        """Clear the recorded gradients (a reverse pass may run more than once)."""
+        self._grad_outs = [[] for _ in range(len(self.weights) + 1)]
+        self._order = []
+
+    def vjp(self, g: Tensor, e: int) -> Tensor:
+        """``J_e^T g`` for ``g: [R, B, D]``: the gradient w.r.t. evaluation ``e``'s input.
+
+        Records the layer gradients for :meth:`weight_grads`.
+        """
+        a = self.acts[e]
+        n = len(self.weights)
+        self._grad_outs[n].append(g)
+        for j in range(n - 1, -1, -1):
+            g = _act_backward(self.act, torch.bmm(g, self.weights[j]), a[j + 1])
+            self._grad_outs[j].append(g)
+        self._order.append(e)
+        return torch.bmm(g, self.w0y)
+
+    def weight_grads(self) -> tuple[Tensor, Tensor | None, Tensor, list[Tensor]]:
+        """``(dW0y, dw0t, db0, [dW1, db1, ...])`` (each ``[R, ...]``) summed over every
+        :meth:`vjp` call: per field over its own ``rows`` states, with the products and sums
+        of ``MLPTape.weight_grads`` (so each field's gradients are those of ``rk4_mlp``)."""
+        order = self._order
+        if not order:
+            rest: list[Tensor] = []
+            for w, b in zip(self.weights, self.biases, strict=True):
+                rest += [torch.zeros_like(w), torch.zeros_like(b)]
+            w0t = None if self.w0t is None else torch.zeros_like(self.w0t)
+            return torch.zeros_like(self.w0y), w0t, torch.zeros_like(self.b0), rest
+        n_fields, batch = self.w0y.shape[0], self.acts[order[0]][0].shape[1]
+        rows = self.rows or [batch] * n_fields
+        # every evaluation's layer inputs and output gradients, [R, E, B, width] per layer
+        grads = [torch.stack(g, 1) for g in self._grad_outs]
+        acts = [torch.stack([self.acts[e][j] for e in order], 1)
+                for j in range(len(self.weights) + 1)]
+        times = [self.times[e] for e in order]
+        if not isinstance(times[0], float) and self.w0t is not None:
+            times = torch.stack(times, 1)  # [R, E, B, 1]
+        per_field = [self._field_grads(grads, acts, times, r, rows[r])
+                     for r in range(n_fields)]
+        stacked = [torch.stack(g) if g[0] is not None else None
+                   for g in zip(*per_field, strict=True)]
+        grad_w0y, grad_w0t, grad_b0, *rest = stacked
+        return grad_w0y, grad_w0t, grad_b0, rest
+
+    def _field_grads(self, grads: list[Tensor], acts: list[Tensor], times, r: int, n: int
+                     ) -> list[Tensor | None]:
+        """Field ``r``'s weight gradients over its first ``n`` states, computed as
+        ``MLPTape.weight_grads`` computes them for those states alone (the same products of
+        the same contiguous ``[E * n, width]`` matrices): ``[dW0y, dw0t, db0, dW1, db1, ...]``."""
+        rest: list[Tensor] = []
+        for j in range(len(self.weights)):
+            g = grads[j + 1][r, :, :n].reshape(-1, grads[j + 1].shape[-1])  # [E*n, out]
+            a = acts[j + 1][r, :, :n].reshape(-1, acts[j + 1].shape[-1])  # [E*n, in]
+            rest += [g.t() @ a, g.sum(0)]
+        g0 = grads[0][r, :, :n].contiguous()  # [E, n, H]; contiguous: sums in its order
+        u0 = acts[0][r, :, :n].contiguous()  # [E, n, D]
+        grad_w0y = g0.reshape(-1, g0.shape[-1]).t() @ u0.reshape(-1, u0.shape[-1])
+        grad_b0 = g0.sum((0, 1))
+        grad_w0t = None
+        if self.w0t is not None:
+            if isinstance(times, list):  # shared float times
+                grad_w0t = torch.tensor(times, dtype=g0.dtype) @ g0.sum(1)
+            else:
+                grad_w0t = (g0 * times[r, :, :n].contiguous()).sum((0, 1))
+        return [grad_w0y, grad_w0t, grad_b0, *rest]
+
+
+def _stage_schedule(times: Tensor, substeps: int):
+    """Step sizes per RK4 step and the stage times (t, t + h/2, t + h) of every step, computed
+    as in ``rk4_fused.sweep_forward``: for shared times ``[K]`` Python floats and a stage-time
+    tensor ``[n_steps * 3, 1, 1, 1]``; for per-sample times ``[R, B, K]`` tensors ``[R, B, 1]``
+    and ``[n_steps * 3, R, B, 1]``. Returns ``(step_h, stage_times, stage_t, n_steps)``."""
+    per_sample = times.dim() == 3
+    n_out = times.shape[-1]
+    tk = times if per_sample else times.reshape(1, 1, -1)  # [R|1, B|1, K]
+    h = (tk[..., 1:] - tk[..., :-1]) / substeps  # [R|1, B|1, K-1]
+    s_idx = torch.arange(substeps, dtype=times.dtype)
+    base = tk[..., :-1].unsqueeze(-1) + h.unsqueeze(-1) * s_idx  # [R|1, B|1, K-1, s]
+    stage_t = torch.stack([base, base + 0.5 * h.unsqueeze(-1), base + h.unsqueeze(-1)], -1)
+    n_steps = (n_out - 1) * substeps
+    r, b = tk.shape[:2]
+    stage_t = stage_t.reshape(r, b, n_steps, 3)
+    hs = h.repeat_interleave(substeps, dim=2)  # [R|1, B|1, n_steps]
+    if per_sample:
+        step_h = list(hs.unsqueeze(-1).unbind(2))  # [R, B, 1] each
+        stage_times = list(stage_t.permute(2, 3, 0, 1).reshape(n_steps * 3, r, b, 1).unbind(0))
+    else:
+        step_h = hs[0, 0].tolist()  # Python floats
+        stage_times = stage_t[0, 0].reshape(-1).tolist()
+    stage_t = stage_t.permute(2, 3, 0, 1).reshape(n_steps * 3, r, b, 1)
+    return step_h, stage_times, stage_t, n_steps
+
+
+def stacked_sweep_forward(tape: StackedMLPTape, y0: Tensor, times: Tensor, substeps: int):
+    """The RK4 sweep of all R fields through ``tape``; returns ``([R, B, K, D] states, step
+    sizes)``. The arithmetic is that of ``sweep_forward``'s branch for these times (per
+    sample: tensor steps; shared: Python-float steps)."""
+    per_sample = times.dim() == 3
+    n_out = times.shape[-1]
+    step_h, stage_times, stage_t, n_steps = _stage_schedule(times, substeps)
+    if tape.w0t is None:
+        rows = None
+    else:  # first-layer bias of every stage in one operation: [n_steps * 3, R, B|1, H]
+        rows = (tape.b0.unsqueeze(1) + stage_t * tape.w0t.unsqueeze(1)).unbind(0)
+
+    def f(u: Tensor, r: int) -> Tensor:
+        return tape(stage_times[r], u, None if rows is None else rows[r])
+
+    y = y0
+    out = [y0]
+    step = 0
+    for _ in range(n_out - 1):
+        for _ in range(substeps):
+            hh = step_h[step]
+            r = 3 * step
+            if per_sample:
+                k1 = f(y, r)
+                k2 = f(torch.addcmul(y, hh, k1, value=0.5), r + 1)
+                k3 = f(torch.addcmul(y, hh, k2, value=0.5), r + 1)
+                k4 = f(torch.addcmul(y, hh, k3), r + 2)
+                y = torch.addcmul(y, hh, torch.add(k1 + k4, k2 + k3, alpha=2.0), value=1 / 6)
+            else:
+                half = 0.5 * hh
+                k1 = f(y, r)
+                k2 = f(torch.add(y, k1, alpha=half), r + 1)
+                k3 = f(torch.add(y, k2, alpha=half), r + 1)
+                k4 = f(torch.add(y, k3, alpha=hh), r + 2)
+                y = torch.add(y, torch.add(k1 + k4, k2 + k3, alpha=2.0), alpha=hh / 6)
+            step += 1
+        out.append(y)
+    return torch.stack(out, dim=2), step_h
+
+
+def stacked_sweep_reverse(tape: StackedMLPTape, step_h: list, substeps: int,
+                          grad_out: Tensor) -> Tensor:
+    """The reverse sweep of :func:`stacked_sweep_forward` for ``grad_out: [R, B, K, D]``:
+    returns the gradient w.r.t. ``y0`` and leaves the weight gradients on ``tape``. The
+    arithmetic is that of ``sweep_reverse``."""
+    tape.start_reverse()
+
+    def scaled(c: float, hh, g: Tensor) -> Tensor:
+        return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
+
+    def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
+        if isinstance(hh, float):
+            return torch.add(y, g, alpha=c * hh)
+        return torch.addcmul(y, hh, g, value=c)
+
+    ybar = grad_out[:, :, -1]
+    step = len(step_h)
+    for k in range(grad_out.shape[2] - 2, -1, -1):
+        for _ in range(substeps):
+            step -= 1
+            hh = step_h[step]
+            e0 = 4 * step
+            k1b = scaled(1.0 / 6.0, hh, ybar)
+            k2b = scaled(1.0 / 3.0, hh, ybar)
+            u4 = tape.vjp(k1b, e0 + 3)
+            u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
+            u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
+            u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
+            ybar = ybar + (u4 + u3) + (u2 + u1)
+        ybar = ybar + grad_out[:, :, k]
+    return ybar
+
+
+class _RK4MLPStacked(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, y0, times, substeps, act, rows, w0y, w0t, b0, *rest):
+        tape = StackedMLPTape(w0y, w0t, b0, rest, act, record=True, rows=rows)
+        with torch.no_grad():
+            result, step_h = stacked_sweep_forward(tape, y0, times, substeps)
+        ctx.tape, ctx.step_h, ctx.substeps = tape, step_h, substeps
+        return result
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        ybar = stacked_sweep_reverse(ctx.tape, ctx.step_h, ctx.substeps, grad_out)
+        grad_w0y, grad_w0t, grad_b0, grads_rest = ctx.tape.weight_grads()
+        return (ybar, None, None, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
+
+
+def _shape(t: Tensor) -> tuple[int, ...]:
+    return tuple(t.shape)
+
+
+def _check_shapes(y0: Tensor, times: Tensor, w0y: Tensor, w0t: Tensor | None, b0: Tensor,
+                  rest: Sequence[Tensor]) -> None:
+    if y0.dim() != 3:
+        raise ValueError(f"y0 must be [R, B, D], got shape {_shape(y0)}")
+    r, b, d = y0.shape
+    if not (times.dim() == 1 or (times.dim() == 3 and times.shape[:2] == (r, b))) or (
+            times.shape[-1] < 1):
+        raise ValueError(f"times must be [K] or [R, B, K] = [{r}, {b}, K] with K >= 1 (y0 "
+                         f"is [R, B, D] = {_shape(y0)}), got shape {_shape(times)}")
+    if w0y.dim() != 3 or w0y.shape[0] != r or w0y.shape[2] != d:
+        raise ValueError(f"w0y must be [R, H, D] = [{r}, H, {d}], got shape {_shape(w0y)}")
+    h = w0y.shape[1]
+    if _shape(b0) != (r, h):
+        raise ValueError(f"b0 must be [R, H] = [{r}, {h}], got shape {_shape(b0)}")
+    if w0t is not None and _shape(w0t) != (r, h):
+        raise ValueError(f"w0t must be [R, H] = [{r}, {h}] or None, got shape {_shape(w0t)}")
+    if len(rest) == 0 or len(rest) % 2:
+        raise ValueError(f"rest must be [W1, b1, ..., WL, bL] with L >= 1, got {len(rest)} "
+                         "tensors")
+    width = h
+    for i in range(0, len(rest), 2):
+        w, bias = rest[i], rest[i + 1]
+        n = i // 2 + 1
+        if w.dim() != 3 or w.shape[0] != r or w.shape[2] != width:
+            raise ValueError(f"W{n} must be [R, out, in] = [{r}, out, {width}], got shape "
+                             f"{_shape(w)}")
+        if _shape(bias) != (r, w.shape[1]):
+            raise ValueError(f"b{n} must be [R, out] = [{r}, {w.shape[1]}], got shape "
+                             f"{_shape(bias)}")
+        width = w.shape[1]
+    if width != d:
+        raise ValueError(f"the last layer must output D = {d} features (y0 is {_shape(y0)}), "
+                         f"got {width}")
+
+
+def rk4_mlp_stacked(
+    y0: Tensor,
+    times: Tensor,
+    w0y: Tensor,
+    w0t: Tensor | None,
+    b0: Tensor,
+    rest: Sequence[Tensor],
+    act: str = "elu",
+    substeps: int = 1,
+    rows: Sequence[int] | None = None,
+) -> Tensor:
+    """RK4-integrate R independent MLP fields in one sweep (see the module docstring).
+
+    Args:
+        y0: ``[R, B, D]`` initial states.
+        times: ``[K]`` output times shared by every sample of every field, or ``[R, B, K]``
+            per sample (increasing along K).
+        w0y: ``[R, H, D]`` first-layer weights on the state.
+        w0t: ``[R, H]`` first-layer weights on the time (NODE^T) or None (NODE^I).
+        b0: ``[R, H]`` first-layer bias.
+        rest: ``[W1 [R, out, in], b1 [R, out], ..., WL, bL]`` the remaining layers.
+        act: hidden activation, one of :data:`FUSED_ACTIVATIONS`.
+        substeps: RK4 steps per output interval.
+        rows: field ``r`` uses the first ``rows[r]`` states only (the others are padding,
+            whose output gradient must be zero); None: all B.
+
+    Returns:
+        ``[R, B, K, D]``; row ``r`` equals ``rk4_mlp(y0[r], times[r], w0y[r], w0t[r], b0[r],
+        [w[r] for w in rest], act, substeps)`` (``times`` for shared times) up to the
+        summation order inside batched products (bit for bit where :func:`stacks_exactly`
+        holds). Differentiable w.r.t. ``y0`` and all weights (hand-written backward pass).
+    """
+    if act not in FUSED_ACTIVATIONS:
+        raise ValueError(f"fused RK4 supports activations {FUSED_ACTIVATIONS}, not {act!r}")
+    if int(substeps) != substeps or substeps < 1:
+        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+    rest = list(rest)
+    _check_shapes(y0, times, w0y, w0t, b0, rest)
+    if rows is not None and (len(rows) != y0.shape[0]
+                             or not all(1 <= int(n) <= y0.shape[1] for n in rows)):
+        raise ValueError(f"rows must give 1..B = {y0.shape[1]} states for each of the "
+                         f"R = {y0.shape[0]} fields, got {list(rows)}")
+    if times.shape[-1] < 2:
+        return y0.unsqueeze(2)
+    times = times.to(y0.dtype)
+    substeps = int(substeps)
+    rows = None if rows is None else tuple(int(n) for n in rows)
+    tensors = [y0, w0y, b0, *rest] + ([] if w0t is None else [w0t])
+    if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
+        with torch.no_grad():
+            tape = StackedMLPTape(w0y, w0t, b0, rest, act, record=False)
+            return stacked_sweep_forward(tape, y0, times, substeps)[0]
+    return _RK4MLPStacked.apply(y0, times, substeps, act, rows, w0y, w0t, b0, *rest)
