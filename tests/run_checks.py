@@ -18,10 +18,11 @@ from clfd_bench.cli.main import main
 RUN_TIMING = frozenset({
     "train_time_s", "train_time_s_by_part", "train_cpu_s", "iterations_per_s_by_part", "wall_s",
     "rollout_wall_s", "evaluated_at", "rollouts_executed", "rollouts_cached", "TE",
-    "CL_score", "CL_stability", "rank",
+    "CL_score", "CL_stability", "rank", "lockstep_by_task",
 })
-"""Varies between an uninterrupted and a resumed run: wall times, what was cached, and what
-is computed from times (TE, and CL_score / CL_stability, which average TE in; the rank)."""
+"""Varies between an uninterrupted and a resumed run: wall times, what was cached, what is
+computed from times (TE, and CL_score / CL_stability, which average TE in; the rank), and how
+many runs learned each task together (a run resumed alone learns its next task alone)."""
 
 
 def comparable(value: Any, ignore: frozenset[str] = RUN_TIMING) -> Any:

@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from run_checks import cli, comparable, finish, kill_when
 
@@ -145,3 +146,34 @@ def test_kill_the_grid_parent_leaves_no_orphans_and_resumes(tmp_path):
     for run_ref in sorted((reference / "runs").rglob("results.json")):
         run_got = out / run_ref.relative_to(reference)
         assert _results(run_got.parent) == _results(run_ref.parent), run_got
+
+
+LOCKSTEP = ["leaderboard", "--dataset", "helloworld", "--methods", "hn", "--profile", "smoke",
+            "--tasks", "2", "--seeds", "0,1,2", "--workers", "1", "--no-sim"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal: Linux")
+def test_kill_a_lockstep_batch_in_the_middle_then_resume(tmp_path):
+    """Three seeds trained in lockstep by one worker, killed (SIGKILL of the grid; its worker
+    dies with it) once the batch has written some of its first task's files; resumed in
+    lockstep, every run ends bit for bit as the same run trained alone without a kill."""
+    alone = tmp_path / "alone"
+    finish(cli(*LOCKSTEP, "--no-lockstep", "--out", str(alone)))
+    out = tmp_path / "grid"
+    proc = cli(*LOCKSTEP, "--out", str(out))
+    runs = out / "runs" / "helloworld" / "hn"
+    kill_when(proc, lambda: any(runs.glob("*/predictions/after_task_0.npz")))
+    deadline = time.monotonic() + 20
+    while _processes_mentioning(str(out)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _processes_mentioning(str(out)), "a killed grid left its lockstep worker"
+    states = [RunDir(d).status(2, sim=False).state for d in sorted(runs.iterdir())]
+    assert "done" not in states and len(states) == 3, states
+    finish(cli(*LOCKSTEP, "--out", str(out)))
+    for ref in sorted((alone / "runs").rglob("results.json")):
+        got = out / ref.relative_to(alone)
+        assert _results(got.parent) == _results(ref.parent), got
+        for pred in sorted(ref.parent.glob("predictions/*.npz")):
+            a, b = np.load(pred), np.load(got.parent / "predictions" / pred.name)
+            assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
+        assert "runs in lockstep" in RunDir(got.parent).log_path.read_text()

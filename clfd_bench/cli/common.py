@@ -64,8 +64,8 @@ def add_grid_arguments(
     """The grid options (:class:`~clfd_bench.leaderboard.grid.GridOptions`, read back by
     :func:`grid_options`): ``--node`` (unless ``node`` is False: a grid with NODE variants of
     its own), ``--tasks``, ``--no-sim`` (unless ``sim`` is False: a grid that never executes)
-    and where the runs run, ``--executor``, ``--workers``, ``--address`` (unless ``executor``
-    is False: a command that only reads a grid)."""
+    and where the runs run, ``--executor``, ``--workers``, ``--address``, ``--no-lockstep``
+    (unless ``executor`` is False: a command that only reads a grid)."""
     from clfd_bench.leaderboard.grid import EXECUTORS
     from clfd_bench.node_variants import NODE_HELP, NODE_VARIANTS
 
@@ -81,6 +81,10 @@ def add_grid_arguments(
                        help=f"parallel local training processes ({workers_help})")
         p.add_argument("--address", default=None,
                        help="Ray cluster address (default: start a local Ray instance)")
+        p.add_argument("--no-lockstep", action="store_true",
+                       help="one process per run (default: the local executor trains runs "
+                            "that differ only in seed or order together, in lockstep, where "
+                            "their models are fused-RK4 NODEs)")
 
 
 def grid_options(args: argparse.Namespace, **fixed):
@@ -97,6 +101,8 @@ def grid_options(args: argparse.Namespace, **fixed):
              ("node", "tasks", "executor", "workers", "address") if hasattr(args, name)}
     if hasattr(args, "no_sim"):
         given["sim"] = not args.no_sim
+    if hasattr(args, "no_lockstep"):
+        given["lockstep"] = not args.no_lockstep
     return GridOptions(**{**given, **fixed})
 
 

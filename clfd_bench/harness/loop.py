@@ -13,6 +13,10 @@ One iteration::
     optimizer.step(); schedule.step(); method.after_step()
     stop rule (stop_window > 0): may lower the lr, or end the task early
 
+:func:`train_tasks` runs this loop for several runs in lockstep (runs that differ only in
+seed or task order): each keeps its own batches, optimiser, stop rule, hooks and global RNG
+state; the task losses of the runs whose batches stack are computed in one pass.
+
 With ``stop_window > 0`` (:mod:`clfd_bench.learning.stop_rule`) ``iterations`` is a cap: the
 task ends once its smoothed loss stops improving; :class:`TrainStats` records the iterations
 it ran.
@@ -32,15 +36,24 @@ import time
 from dataclasses import dataclass
 
 import torch
+from torch import Tensor
 
 from clfd_bench.harness.config import PartConfig
 from clfd_bench.learning.batches import BatchSampler
-from clfd_bench.learning.objective import batch_spec, solver_spec, trajectory_loss
+from clfd_bench.learning.fields import Field
+from clfd_bench.learning.objective import (
+    batch_spec,
+    solver_spec,
+    stack_key,
+    stacked_trajectory_losses,
+    trajectory_loss,
+)
 from clfd_bench.learning.stop_rule import StopRule
 from clfd_bench.methods.base import Method, StepContext, TaskData
 from clfd_bench.progress import progress
 
 __all__ = [
+    "TaskRun",
     "TrainingDivergedError",
     "TrainStats",
     "batch_spec",
@@ -49,6 +62,7 @@ __all__ = [
     "solver_spec",
     "stop_rule",
     "train_task",
+    "train_tasks",
     "warm_up",
 ]
 
@@ -146,6 +160,190 @@ def stop_rule(cfg: PartConfig) -> StopRule | None:
     return StopRule(cfg.stop_window, cfg.stop_rel, cfg.stop_decays, math.ceil(start))
 
 
+@dataclass
+class TaskRun:
+    """One run's share of a lockstep training (:func:`train_tasks`): the arguments of
+    :func:`train_task`, and the global torch RNG state the run's hooks see (None: the
+    current one; runs trained together each keep their own)."""
+
+    method: Method
+    task: int
+    data: TaskData
+    cfg: PartConfig
+    generator: torch.Generator
+    desc: str = ""
+    rng_state: torch.Tensor | None = None
+
+
+class _Lane:
+    """The loop state of one :class:`TaskRun`: optimiser, schedule, stop rule, samplers,
+    progress bar, its own global RNG state."""
+
+    def __init__(self, run: TaskRun):
+        self.run, self.cfg = run, run.cfg
+        self.start = time.perf_counter()
+        self.rng = run.rng_state if run.rng_state is not None else torch.get_rng_state()
+        self.spec, self.solver = batch_spec(run.cfg), solver_spec(run.cfg)
+        with self.own_rng():
+            run.method.train()
+            run.method.on_task_start(run.task, run.data)
+        self.optimizer = _adam(run.method.trainable(run.task), run.cfg.lr)
+        stop = self.stop = stop_rule(run.cfg)
+        cfg = run.cfg
+        if stop is None:
+            factor = lambda it: lr_factor(cfg, it)  # noqa: E731
+        else:
+            factor = lambda it: lr_factor(cfg, it) * stop.lr_scale  # noqa: E731
+        self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, factor)
+        self.samplers: dict[int, BatchSampler] = {}
+        self.loss_value = float("nan")
+        self.bar = progress(total=cfg.iterations, desc=run.desc or f"task {run.task}")
+        self.loop_start = time.perf_counter()
+        self.done = cfg.iterations
+        self.finished = False
+        self.error: TrainingDivergedError | None = None
+        self.stats: TrainStats | None = None
+
+    def own_rng(self):
+        """A context in which the global torch RNG is this run's."""
+        return _OwnRng(self)
+
+    def batch(self, it: int) -> tuple[Field, Tensor, Tensor]:
+        """Pick the task, draw the batch, zero the gradients: ``(field, t, y)``."""
+        run = self.run
+        with self.own_rng():
+            k = run.method.pick_task(run.task, run.generator)
+            sampler = self.samplers.get(k)
+            if sampler is None:
+                source = run.data if k == run.task else run.method.replay_data(k)
+                sampler = self.samplers[k] = source.sampler(self.spec, self.cfg.iterations)
+            t, y = sampler.sample(it, run.generator)
+            self.optimizer.zero_grad(set_to_none=True)
+            return run.method.field(k), t, y
+
+    def fail(self, it: int | None, what: str, cause: BaseException | None = None) -> None:
+        self.bar.close()
+        run = self.run
+        self.error = _diverged(run.desc, run.task, it, run.cfg, what)
+        self.error.__cause__ = cause
+        self.finished = True
+
+    def step(self, it: int, loss: Tensor) -> None:
+        """Everything of iteration ``it`` after the task loss's backward pass."""
+        run, cfg = self.run, self.cfg
+        with self.own_rng():
+            ctx = StepContext(task=run.task, iteration=it, optimizer=self.optimizer,
+                              generator=run.generator)
+            extra = run.method.extra_loss(ctx)
+            if extra is not None:
+                extra.backward()
+            run.method.before_step(ctx)
+            self.optimizer.step()
+            stopping = self.stop is not None and self.stop.update(it, float(loss.detach()))
+            self.schedule.step()
+            run.method.after_step()
+        if it % 25 == 0 or it == cfg.iterations - 1 or stopping:
+            self.loss_value = float(loss.detach())
+            if not math.isfinite(self.loss_value):
+                self.fail(it, f"the loss is {self.loss_value}")
+                return
+            self.bar.set_postfix(loss=f"{self.loss_value:.2e}", refresh=False)
+        self.bar.update(1)
+        if stopping or it == cfg.iterations - 1:
+            self.done = it + 1
+            self.end()
+
+    def end(self) -> None:
+        self.bar.close()
+        loop_seconds = time.perf_counter() - self.loop_start
+        run = self.run
+        with self.own_rng():
+            run.method.on_task_end(run.task, run.data)
+            run.method.eval()
+        self.stats = TrainStats(time.perf_counter() - self.start, self.done, self.loss_value,
+                                loop_seconds)
+        self.finished = True
+
+
+class _OwnRng:
+    """Swaps a lane's global RNG state in for the duration of a ``with`` block."""
+
+    def __init__(self, lane: _Lane):
+        self.lane = lane
+
+    def __enter__(self) -> None:
+        self.saved = torch.get_rng_state()
+        torch.set_rng_state(self.lane.rng)
+
+    def __exit__(self, *exc) -> None:
+        self.lane.rng = torch.get_rng_state()
+        torch.set_rng_state(self.saved)
+
+
+def _losses(lanes: list[_Lane], batches: list[tuple[Field, Tensor, Tensor]], it: int
+            ) -> list[Tensor | None]:
+    """The task loss of every lane's batch: lanes whose batches stack (same
+    :func:`stack_key`) in one pass, the others alone as :func:`trajectory_loss`; None for a
+    lane whose solver failed (marked failed)."""
+    groups: dict[object, list[int]] = {}
+    for i, (lane, (field, t, y)) in enumerate(zip(lanes, batches, strict=True)):
+        key = stack_key(field, t, y, lane.solver)
+        groups.setdefault(i if key is None else key, []).append(i)
+    losses: list[Tensor | None] = [None] * len(lanes)
+    for members in groups.values():
+        if len(members) > 1:
+            parts = [batches[i] for i in members]
+            values = stacked_trajectory_losses([p[0] for p in parts], [p[1] for p in parts],
+                                               [p[2] for p in parts], lanes[members[0]].solver)
+            for i, value in zip(members, values, strict=True):
+                losses[i] = value
+            continue
+        i = members[0]
+        field, t, y = batches[i]
+        try:
+            losses[i] = trajectory_loss(field, t, y, lanes[i].solver)
+        except (FloatingPointError, AssertionError, RuntimeError) as exc:
+            if not solver_blew_up(exc):
+                raise
+            lanes[i].fail(it, f"the ODE solver failed ({exc})", exc)
+    return losses
+
+
+def train_tasks(runs: list[TaskRun]) -> list[TrainStats | TrainingDivergedError]:
+    """Learn several runs' tasks in lockstep: the same loop as :func:`train_task` for each
+    run, with the task losses of the runs whose batches stack computed in one pass and
+    back-propagated together (:func:`~clfd_bench.learning.objective.stacked_trajectory_losses`;
+    each run's loss depends on its own weights only, so each run gets its own gradient).
+    Everything else is each run's own: its batches and task picks (its generator), its
+    optimiser, schedule and stop rule (a run that stops leaves the others going), its hooks,
+    run with its own global RNG state. Each run's result equals :func:`train_task`'s for it
+    alone up to float summation order.
+
+    Returns:
+        per run, its :class:`TrainStats`, or the :class:`TrainingDivergedError` that ended it
+        (the other runs go on).
+    """
+    lanes = [_Lane(run) for run in runs]
+    it = 0
+    while True:
+        active = [lane for lane in lanes if not lane.finished]
+        if not active:
+            break
+        batches = [lane.batch(it) for lane in active]
+        losses = _losses(active, batches, it)
+        live = [(lane, loss) for lane, loss in zip(active, losses, strict=True)
+                if loss is not None]
+        if live:
+            total = live[0][1] if len(live) == 1 else torch.stack([v for _, v in live]).sum()
+            total.backward()
+        for lane, loss in live:
+            lane.step(it, loss)
+        it += 1
+    for run, lane in zip(runs, lanes, strict=True):
+        run.rng_state = lane.rng
+    return [lane.error if lane.error is not None else lane.stats for lane in lanes]
+
+
 def train_task(
     method: Method,
     task: int,
@@ -167,59 +365,9 @@ def train_task(
     Raises:
         TrainingDivergedError: the loss became NaN/inf (lower ``lr``).
     """
-    start = time.perf_counter()
-    spec, solver = batch_spec(cfg), solver_spec(cfg)
-    method.train()
-    method.on_task_start(task, data)
-    optimizer = _adam(method.trainable(task), cfg.lr)
-    stop = stop_rule(cfg)
-    if stop is None:
-        schedule = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda it: lr_factor(cfg, it))
-    else:
-        schedule = torch.optim.lr_scheduler.LambdaLR(
-            optimizer, lambda it: lr_factor(cfg, it) * stop.lr_scale)
-    samplers: dict[int, BatchSampler] = {}
-    loss_value = float("nan")
-    bar = progress(total=cfg.iterations, desc=desc or f"task {task}")
-    loop_start = time.perf_counter()
-    done = cfg.iterations
-    for it in range(cfg.iterations):
-        k = method.pick_task(task, generator)
-        sampler = samplers.get(k)
-        if sampler is None:
-            source = data if k == task else method.replay_data(k)
-            sampler = samplers[k] = source.sampler(spec, cfg.iterations)
-        t, y = sampler.sample(it, generator)
-        optimizer.zero_grad(set_to_none=True)
-        try:
-            loss = trajectory_loss(method.field(k), t, y, solver)
-        except (FloatingPointError, AssertionError, RuntimeError) as exc:
-            if not solver_blew_up(exc):
-                raise
-            bar.close()
-            raise _diverged(desc, task, it, cfg, f"the ODE solver failed ({exc})") from exc
-        loss.backward()
-        ctx = StepContext(task=task, iteration=it, optimizer=optimizer, generator=generator)
-        extra = method.extra_loss(ctx)
-        if extra is not None:
-            extra.backward()
-        method.before_step(ctx)
-        optimizer.step()
-        stopping = stop is not None and stop.update(it, float(loss.detach()))
-        schedule.step()
-        method.after_step()
-        if it % 25 == 0 or it == cfg.iterations - 1 or stopping:
-            loss_value = float(loss.detach())
-            if not math.isfinite(loss_value):
-                bar.close()
-                raise _diverged(desc, task, it, cfg, f"the loss is {loss_value}")
-            bar.set_postfix(loss=f"{loss_value:.2e}", refresh=False)
-        bar.update(1)
-        if stopping:
-            done = it + 1
-            break
-    bar.close()
-    loop_seconds = time.perf_counter() - loop_start
-    method.on_task_end(task, data)
-    method.eval()
-    return TrainStats(time.perf_counter() - start, done, loss_value, loop_seconds)
+    run = TaskRun(method, task, data, cfg, generator, desc)
+    (result,) = train_tasks([run])
+    torch.set_rng_state(run.rng_state)  # where the run's hooks left the global RNG
+    if isinstance(result, TrainingDivergedError):
+        raise result
+    return result

@@ -20,7 +20,8 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,7 @@ from clfd_bench.harness.evaluation import (
     task_errors,
 )
 from clfd_bench.harness.learner import Learner
-from clfd_bench.harness.loop import warm_up
+from clfd_bench.harness.loop import TaskRun, TrainingDivergedError, TrainStats, train_tasks, warm_up
 from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.io import json_safe
 from clfd_bench.runs import CHECKPOINT_FILE, RunDir
@@ -48,10 +49,12 @@ from clfd_bench.runs import CHECKPOINT_FILE, RunDir
 __all__ = [
     "SCHEMA_VERSION",
     "RunMismatchError",
+    "TrainingJob",
     "available_cores",
     "default_threads",
     "load_learner",
     "run_training",
+    "run_trainings",
     "task_seed",
 ]
 
@@ -190,6 +193,235 @@ def load_learner(run_dir: str | os.PathLike[str], *,
     return learner, header
 
 
+@dataclass(frozen=True)
+class TrainingJob:
+    """One run of :func:`run_trainings`: the arguments of :func:`run_training` that are the
+    run's own.
+
+    Attributes:
+        config: the resolved run configuration. out_dir: the run directory. log: where its
+            one-line summaries go (None: silent). after_task: called with the task index
+            after each of its finished tasks. keep_checkpoints: keep every task's checkpoint.
+    """
+
+    config: RunConfig
+    out_dir: str | os.PathLike[str]
+    log: Callable[[str], None] | None = print
+    after_task: Callable[[int], Any] | None = None
+    keep_checkpoints: bool = False
+
+
+class _ProtocolRun:
+    """One run of the protocol, task by task: its run directory, learner and results state
+    (resumed from the directory's checkpoint), then per task the training units of its
+    parts (:meth:`part_run`) and what follows training (:meth:`finish_task`)."""
+
+    def __init__(self, job: TrainingJob, threads: int):
+        self.job, self.log = job, job.log
+        run = self.run = RunDir(job.out_dir)
+        out = run.path
+        config = job.config
+        ds = self.ds = load_dataset(config.dataset, order=config.order)
+        n_tasks = self.n_tasks = len(ds) if config.tasks is None else min(config.tasks, len(ds))
+        config = self.config = dataclasses.replace(config, tasks=n_tasks)
+        tasks = self.tasks = ds.tasks[:n_tasks]
+        self.dim = tasks[0].dim
+        metrics = self.metrics = metrics_for(tasks[0].is_pose)
+        log = job.log
+
+        torch.manual_seed(config.seed)
+        learner = self.learner = Learner.from_config(config, self.dim)
+        parts = list(learner.parts)
+        state = _empty_state([t.name for t in tasks], metrics, parts)
+        provenance = self.provenance = _provenance(config, ds, threads)
+        if run.has_checkpoint():
+            header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
+            saved = header["config"]
+            diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
+            if diff:
+                raise RunMismatchError(
+                    f"{out} holds a run with a different configuration ({'; '.join(diff)}); "
+                    "use another --out directory or delete this one"
+                )
+            for kind, part in learner.parts.items():
+                prefix = f"{kind}/"
+                part.restore(header["parts"][kind], {k[len(prefix):]: v for k, v in
+                                                     tensors.items() if k.startswith(prefix)})
+            saved_state = header["state"]
+            done = len(saved_state["train_time_s"])
+            # runs saved before the stop rule existed ran every iteration of every task
+            saved_state.setdefault("iterations_by_part", {
+                kind: [config.part(kind).iterations] * done for kind in learner.parts})
+            if done > n_tasks:
+                raise RunMismatchError(
+                    f"{out} already holds {done} learned tasks, more than the {n_tasks} asked "
+                    "for; use another --out directory"
+                )
+            # the CPU each saved task was learned on (None: a run saved before this was recorded)
+            saved_prov = header.get("provenance") or {}
+            provenance["cpu_by_task"] = _saved_cpus(saved_prov, done)
+            provenance["lockstep_by_task"] = (list(saved_prov.get("lockstep_by_task") or [])
+                                              + [1] * done)[:done]
+            moved = _cpu_change(provenance["cpu_by_task"], provenance["cpu"])
+            if log and moved and done < n_tasks:
+                log(f"warning: {out} was learned on another CPU or kernel setting ({moved}); "
+                    "its results will mix those float kernels with this one's "
+                    "(provenance.cpu_by_task records which task was learned where; seeds "
+                    "reproduce a run on one CPU only)")
+            saved_state["tasks"] = state["tasks"]
+            # a run saved before CPU time was recorded: unknown for its finished tasks
+            saved_state["train_cpu_s"] = (list(saved_state.get("train_cpu_s") or [])
+                                          + [None] * done)[:done]
+            for metric in metrics:  # widen saved rows to the (possibly larger) task count
+                saved_state["errors"][metric] = [
+                    (row + [None] * n_tasks)[:n_tasks] for row in saved_state["errors"][metric]
+                ]
+            state = saved_state
+            if log and done < n_tasks:
+                log(f"resuming {out} after task {done - 1} ({done}/{n_tasks} tasks done)")
+        else:
+            out.mkdir(parents=True, exist_ok=True)
+            done = 0
+        self.state, self.done = state, done
+        self.label = f"{config.method}/{config.dataset}"
+        self._times: dict[str, float] = {}
+
+    def part_run(self, i: int, kind: str) -> TaskRun:
+        """Task ``i`` added to part ``kind``'s model, with the RNGs seeded from
+        ``(seed, i)``: what the training loop runs for it."""
+        task = self.tasks[i]
+        seed_i = task_seed(self.config.seed, i)
+        part = self.learner.parts[kind]
+        torch.manual_seed(seed_i)
+        generator = torch.Generator().manual_seed(seed_i + 1)
+        if i != part.method.num_tasks:
+            raise ValueError(f"tasks are learned in order: expected task "
+                             f"{part.method.num_tasks}, got {i}")
+        data = part.add_task(task)
+        return TaskRun(part.method, i, data, part.cfg, generator,
+                       f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state())
+
+    def record_part(self, kind: str, stats: TrainStats) -> None:
+        """What training part ``kind`` on the current task took."""
+        state = self.state
+        self._times[kind] = stats.seconds
+        state["train_time_s_by_part"][kind].append(stats.seconds)
+        state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
+        state["iterations_by_part"][kind].append(stats.iterations)
+        state["final_loss_by_part"][kind].append(stats.final_loss)
+        state["num_params_by_part"][kind].append(self.learner.parts[kind].method.num_params())
+
+    def finish_task(self, i: int, cpu_s: float, lockstep: int) -> None:
+        """After every part learned task ``i``: predict tasks ``0..i``, score them, write the
+        predictions, the checkpoint and ``results.json``, then the run's ``after_task``.
+
+        Args:
+            cpu_s: the CPU time of training the task (a lockstep batch's, shared equally).
+            lockstep: how many runs trained the task together (1: alone).
+        """
+        state, learner, tasks, n_tasks = self.state, self.learner, self.tasks, self.n_tasks
+        task = tasks[i]
+        self.provenance["cpu_by_task"].append(self.provenance["cpu"])
+        self.provenance.setdefault("lockstep_by_task", []).append(lockstep)
+        state["train_time_s"].append(sum(self._times.values()))
+        self._times = {}
+        state["train_cpu_s"].append(cpu_s)
+        state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
+        state["stored_samples"].append(
+            max(p.method.stored_samples() for p in learner.parts.values())
+        )
+        preds = []
+        for metric in self.metrics:
+            state["errors"][metric].append([None] * n_tasks)
+        for j in range(i + 1):
+            tj = tasks[j]
+            pred = learner.predict(j, tj.demos[:, 0], tj.times, learner.demo_goals(tj))
+            preds.append(pred)
+            for metric, values in task_errors(tj, pred).items():
+                state["errors"][metric][i][j] = values
+        self.run.save_predictions(i, preds)
+        headers, tensors = _checkpoint_payload(learner)
+        header = json_safe({"config": self.config.to_dict(), "dim": self.dim, "parts": headers,
+                            "state": state, "provenance": self.provenance})
+        self.run.write_checkpoint(encode_checkpoint(header, tensors),
+                                  keep_as=i if self.job.keep_checkpoints else None)
+        results = _results(self.config, self.ds, state, complete=i == n_tasks - 1,
+                           provenance=self.provenance)
+        self.run.write_training_results(results)
+        self.done = i + 1
+        if self.log:
+            self.log(_summary_line(self.config, task.name, i, n_tasks, state, results))
+        if self.job.after_task is not None:
+            self.job.after_task(i)
+
+    def results(self) -> dict[str, Any]:
+        """Write and return the final ``results.json``."""
+        results = _results(self.config, self.ds, self.state, complete=True,
+                           provenance=self.provenance)
+        return self.run.write_training_results(results)
+
+
+def run_trainings(jobs: Sequence[TrainingJob], *, threads: int | None = None
+                  ) -> list[dict[str, Any] | Exception]:
+    """Run (or resume) several runs of the protocol in lockstep, in this process: task ``i``
+    of every run that needs it is learned by one :func:`~clfd_bench.harness.loop.train_tasks`
+    (the runs' task losses computed together where they stack), then each run predicts,
+    scores and writes its files as :func:`run_training` does. Runs may resume at different
+    tasks (a run waits until the others reach its next task). Meant for runs that differ
+    only in seed or task order; any runs are correct together.
+
+    A run that fails (diverged training, a directory holding another run, an exception of
+    its ``after_task``) stops there, its finished tasks kept, and the others go on.
+
+    Returns:
+        per job, its final ``results.json``, or the exception that stopped it.
+    """
+    threads = threads or default_threads()
+    torch.set_num_threads(threads)
+    runs: list[_ProtocolRun | None] = []
+    outcome: list[dict[str, Any] | Exception | None] = []
+    for job in jobs:
+        try:
+            runs.append(_ProtocolRun(job, threads))
+            outcome.append(None)
+        except Exception as exc:  # noqa: BLE001 - this run's failure, reported as its outcome
+            runs.append(None)
+            outcome.append(exc)
+
+    def alive(k: int) -> bool:
+        return runs[k] is not None and outcome[k] is None
+
+    pending = [k for k in range(len(jobs)) if alive(k) and runs[k].done < runs[k].n_tasks]
+    if pending:
+        warm_up()
+    for i in range(min((runs[k].done for k in pending), default=0),
+                   max((runs[k].n_tasks for k in pending), default=0)):
+        active = [k for k in range(len(jobs))
+                  if alive(k) and runs[k].done == i and i < runs[k].n_tasks]
+        if not active:
+            continue
+        cpu_start = time.process_time()
+        for kind in dict.fromkeys(kind for k in active for kind in runs[k].learner.parts):
+            members = [k for k in active if alive(k) and kind in runs[k].learner.parts]
+            units = [runs[k].part_run(i, kind) for k in members]
+            for k, result in zip(members, train_tasks(units), strict=True):
+                if isinstance(result, TrainingDivergedError):
+                    outcome[k] = result
+                else:
+                    runs[k].record_part(kind, result)
+        trained = [k for k in active if alive(k)]
+        cpu_s = (time.process_time() - cpu_start) / max(1, len(active))
+        for k in trained:
+            try:
+                runs[k].finish_task(i, cpu_s, len(active))
+            except Exception as exc:  # noqa: BLE001 - stops this run only
+                outcome[k] = exc
+    for k in range(len(jobs)):
+        if alive(k):
+            outcome[k] = runs[k].results()
+    return outcome  # type: ignore[return-value]
+
+
 def run_training(
     config: RunConfig,
     out_dir: str | os.PathLike[str],
@@ -212,116 +444,13 @@ def run_training(
 
     Raises:
         RunMismatchError: ``out_dir`` holds a run with a different configuration.
+        TrainingDivergedError: training diverged (the tasks finished before stay).
     """
-    run = RunDir(out_dir)
-    out = run.path
-    threads = threads or default_threads()
-    torch.set_num_threads(threads)
-    ds = load_dataset(config.dataset, order=config.order)
-    n_tasks = len(ds) if config.tasks is None else min(config.tasks, len(ds))
-    config = dataclasses.replace(config, tasks=n_tasks)
-    tasks = ds.tasks[:n_tasks]
-    dim = tasks[0].dim
-    metrics = metrics_for(tasks[0].is_pose)
-
-    torch.manual_seed(config.seed)
-    learner = Learner.from_config(config, dim)
-    parts = list(learner.parts)
-    state = _empty_state([t.name for t in tasks], metrics, parts)
-    provenance = _provenance(config, ds, threads)
-    if run.has_checkpoint():
-        header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
-        saved = header["config"]
-        diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
-        if diff:
-            raise RunMismatchError(
-                f"{out} holds a run with a different configuration ({'; '.join(diff)}); "
-                "use another --out directory or delete this one"
-            )
-        for kind, part in learner.parts.items():
-            prefix = f"{kind}/"
-            part.restore(header["parts"][kind],
-                         {k[len(prefix):]: v for k, v in tensors.items() if k.startswith(prefix)})
-        saved_state = header["state"]
-        done = len(saved_state["train_time_s"])
-        # runs saved before the stop rule existed ran every iteration of every task
-        saved_state.setdefault("iterations_by_part", {
-            kind: [config.part(kind).iterations] * done for kind in learner.parts})
-        if done > n_tasks:
-            raise RunMismatchError(
-                f"{out} already holds {done} learned tasks, more than the {n_tasks} asked for; "
-                "use another --out directory"
-            )
-        # the CPU each saved task was learned on (None: a run saved before this was recorded)
-        provenance["cpu_by_task"] = _saved_cpus(header.get("provenance") or {}, done)
-        moved = _cpu_change(provenance["cpu_by_task"], provenance["cpu"])
-        if log and moved and done < n_tasks:
-            log(f"warning: {out} was learned on another CPU or kernel setting ({moved}); its "
-                "results will mix those float kernels with this one's (provenance.cpu_by_task "
-                "records which task was learned where; seeds reproduce a run on one CPU only)")
-        saved_state["tasks"] = state["tasks"]
-        # a run saved before CPU time was recorded: unknown for its finished tasks
-        saved_state["train_cpu_s"] = (list(saved_state.get("train_cpu_s") or [])
-                                      + [None] * done)[:done]
-        for metric in metrics:  # widen saved rows to the (possibly larger) task count
-            saved_state["errors"][metric] = [
-                (row + [None] * n_tasks)[:n_tasks] for row in saved_state["errors"][metric]
-            ]
-        state = saved_state
-        if log and done < n_tasks:
-            log(f"resuming {out} after task {done - 1} ({done}/{n_tasks} tasks done)")
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-        done = 0
-
-    label = f"{config.method}/{config.dataset}"
-    if done < n_tasks:
-        warm_up()
-    for i in range(done, n_tasks):
-        task = tasks[i]
-        seed_i = task_seed(config.seed, i)
-        times_by_part = {}
-        cpu_start = time.process_time()
-        for kind, part in learner.parts.items():
-            torch.manual_seed(seed_i)
-            generator = torch.Generator().manual_seed(seed_i + 1)
-            stats = part.learn(i, task, generator, desc=f"{label} {kind} task {i} {task.name}")
-            times_by_part[kind] = stats.seconds
-            state["train_time_s_by_part"][kind].append(stats.seconds)
-            state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
-            state["iterations_by_part"][kind].append(stats.iterations)
-            state["final_loss_by_part"][kind].append(stats.final_loss)
-            state["num_params_by_part"][kind].append(part.method.num_params())
-        provenance["cpu_by_task"].append(provenance["cpu"])
-        state["train_time_s"].append(sum(times_by_part.values()))
-        state["train_cpu_s"].append(time.process_time() - cpu_start)
-        state["num_params"].append(sum(p.method.num_params() for p in learner.parts.values()))
-        state["stored_samples"].append(
-            max(p.method.stored_samples() for p in learner.parts.values())
-        )
-        preds = []
-        for metric in metrics:
-            state["errors"][metric].append([None] * n_tasks)
-        for j in range(i + 1):
-            tj = tasks[j]
-            pred = learner.predict(j, tj.demos[:, 0], tj.times, learner.demo_goals(tj))
-            preds.append(pred)
-            for metric, values in task_errors(tj, pred).items():
-                state["errors"][metric][i][j] = values
-        run.save_predictions(i, preds)
-        headers, tensors = _checkpoint_payload(learner)
-        header = json_safe({"config": config.to_dict(), "dim": dim, "parts": headers,
-                             "state": state, "provenance": provenance})
-        run.write_checkpoint(encode_checkpoint(header, tensors),
-                             keep_as=i if keep_checkpoints else None)
-        results = _results(config, ds, state, complete=i == n_tasks - 1, provenance=provenance)
-        run.write_training_results(results)
-        if log:
-            log(_summary_line(config, task.name, i, n_tasks, state, results))
-        if after_task is not None:
-            after_task(i)
-    results = _results(config, ds, state, complete=True, provenance=provenance)
-    return run.write_training_results(results)
+    (result,) = run_trainings(
+        [TrainingJob(config, out_dir, log, after_task, keep_checkpoints)], threads=threads)
+    if isinstance(result, Exception):
+        raise result
+    return result
 
 
 def _summary_line(config: RunConfig, name: str, i: int, n: int, state: dict,

@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -36,11 +37,13 @@ __all__ = [
     "Source",
     "TrainSpec",
     "Training",
+    "checked_lockstep",
     "checked_run",
     "execute_after_task",
     "failure",
     "finish_execution",
     "run",
+    "run_lockstep",
     "summary_lines",
 ]
 
@@ -204,6 +207,59 @@ def run(
     return results
 
 
+def run_lockstep(
+    trainings: Sequence[Training],
+    outs: Sequence[str | os.PathLike[str]],
+    *,
+    sim: bool = True,
+    sim_workers: int = 1,
+    logs: Sequence[Log | None] | None = None,
+) -> list[dict[str, Any] | Exception]:
+    """Runs (or resumes) several training runs in this process, their tasks learned in
+    lockstep (:func:`~clfd_bench.harness.protocol.run_trainings`); each run is what
+    :func:`run` makes of it alone, up to float summation order: its directory locked for the
+    whole call, its predictions, checkpoints and results, with ``sim`` its executions after
+    each task and at the end.
+
+    Args:
+        trainings: the runs (differing in seed or order; the first one's ``threads`` is used).
+        outs: their run directories, one per training.
+        logs: per run, where its progress lines go (None: nowhere).
+
+    Returns:
+        per run, its ``results.json`` as written, or the exception that stopped it (a run
+        directory held by another process or holding another run, diverged training, ...);
+        the other runs are not affected by one that stops.
+    """
+    from clfd_bench.harness.protocol import TrainingJob, run_trainings
+
+    logs = list(logs) if logs is not None else [None] * len(trainings)
+    outcomes: list[dict[str, Any] | Exception | None] = [None] * len(trainings)
+    with ExitStack() as stack:
+        jobs, members = [], []
+        for k, (training, out) in enumerate(zip(trainings, outs, strict=True)):
+            directory = RunDir(out)
+            try:
+                stack.enter_context(directory.lock(training.owner(directory.path)))
+            except Exception as exc:  # noqa: BLE001 - held elsewhere: this run's outcome
+                outcomes[k] = exc
+                continue
+            hook = execute_after_task(out, sim_workers, logs[k]) if sim else None
+            jobs.append(TrainingJob(training.config, directory.path, logs[k], hook,
+                                    training.keep_checkpoints))
+            members.append(k)
+        threads = trainings[0].threads if trainings else None
+        for k, result in zip(members, run_trainings(jobs, threads=threads), strict=True):
+            if not isinstance(result, Exception) and sim:
+                try:
+                    result.update(finish_execution(RunDir(outs[k]), result["tasks_done"],
+                                                   sim_workers))
+                except Exception as exc:  # noqa: BLE001 - stops this run only
+                    result = exc
+            outcomes[k] = result
+    return outcomes  # type: ignore[return-value]
+
+
 def summary_lines(results: dict[str, Any], results_path: Path) -> list[str]:
     """What a finished run prints: its CL metrics (and executed ones); none without any."""
     cl = results.get("cl_metrics")
@@ -220,12 +276,13 @@ def summary_lines(results: dict[str, Any], results_path: Path) -> list[str]:
     return lines
 
 
-def failure(exc: BaseException, out: str | os.PathLike[str], prog: str) -> int:
+def failure(exc: BaseException, out: str | os.PathLike[str], prog: str,
+            write: Log | None = None) -> int:
     """How a command ends a run that raised ``exc``: for a reason of the user's or of the
     run's, one line on stderr (``<prog>: error: ...``) and the exit code -- 2 for a bad input
     (:data:`~clfd_bench.harness.validate.USER_ERRORS`), a run directory holding another run
     or held by another process; 1 for diverged training. Any other ``exc`` is a bug: raised
-    again (its traceback is the report)."""
+    again (its traceback is the report). ``write`` takes the line instead of stderr."""
     from clfd_bench.harness.loop import TrainingDivergedError
     from clfd_bench.harness.protocol import RunMismatchError
     from clfd_bench.harness.validate import USER_ERRORS
@@ -240,7 +297,11 @@ def failure(exc: BaseException, out: str | os.PathLike[str], prog: str) -> int:
         message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
     else:
         raise exc
-    print(f"{prog}: error: {message}", file=sys.stderr)
+    line = f"{prog}: error: {message}"
+    if write is None:
+        print(line, file=sys.stderr)
+    else:
+        write(line)
     return code
 
 
@@ -265,3 +326,47 @@ def checked_run(training: Training, out: str | os.PathLike[str], *, sim: bool,
         for line in summary_lines(results, RunDir(out).results_path):
             log(line)
     return 0
+
+
+def checked_lockstep(trainings: Sequence[Training], outs: Sequence[str | os.PathLike[str]],
+                     *, sim: bool, sim_workers: int, logs: Sequence[Log], prog: str
+                     ) -> list[int]:
+    """:func:`checked_run` for several runs trained in lockstep (:func:`run_lockstep`):
+    each run's inputs checked, then all run together; each run's outcome (its summary, or
+    its one-line error, or for a bug its traceback) goes to its own ``logs[k]``. Returns
+    each run's exit code, as :func:`checked_run` would give it alone."""
+    import traceback
+
+    from clfd_bench.harness.validate import check_dataset, check_robot_model, check_run_out_dir
+
+    codes: list[int | None] = [None] * len(trainings)
+    ready = []
+    for k, (training, out) in enumerate(zip(trainings, outs, strict=True)):
+        try:
+            check_run_out_dir(out)
+            check_dataset(training.config.dataset, training.config.order)
+            if sim:
+                check_robot_model()
+            ready.append(k)
+        except Exception as exc:  # noqa: BLE001 - reported per run below
+            codes[k] = _reported(exc, out, prog, logs[k], traceback)
+    results = run_lockstep([trainings[k] for k in ready], [outs[k] for k in ready], sim=sim,
+                           sim_workers=sim_workers, logs=[logs[k] for k in ready])
+    for k, result in zip(ready, results, strict=True):
+        if isinstance(result, Exception):
+            codes[k] = _reported(result, outs[k], prog, logs[k], traceback)
+            continue
+        for line in summary_lines(result, RunDir(outs[k]).results_path):
+            logs[k](line)
+        codes[k] = 0
+    return [int(c) for c in codes]  # type: ignore[arg-type]
+
+
+def _reported(exc: Exception, out, prog: str, log: Log, traceback) -> int:
+    """:func:`failure` for one run of several: a bug's traceback goes to the run's log
+    (exit code 1) instead of ending the others."""
+    try:
+        return failure(exc, out, prog, write=log)
+    except Exception:  # noqa: BLE001 - a bug in this run: its report
+        log("".join(traceback.format_exception(exc)).rstrip())
+        return 1

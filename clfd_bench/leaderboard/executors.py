@@ -3,7 +3,10 @@
 Both run exactly the same command, a grid worker (``python -m clfd_bench.harness.worker JOB``,
 :mod:`clfd_bench.harness.worker`, which runs the run with :func:`clfd_bench.harness.run.run`),
 with the same environment (``CLFD_THREADS=1``, no progress bars), so they give the same
-results; the worker's output is appended to the run's ``train.log``. A run that
+results; the worker's output is appended to the run's ``train.log``. The local executor
+trains runs that differ only in seed or order in one worker, in lockstep
+(:func:`~clfd_bench.leaderboard.grid.lockstep_batches`; each run's lines and outcome stay its
+own); Ray runs every run in a worker of its own. A run that
 crashes is recorded in ``<run_dir>/failed.json`` with the end of its log and does not stop
 the grid.
 
@@ -34,7 +37,14 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from clfd_bench.leaderboard.grid import DEFAULT_OPTIONS, EXECUTORS, GridOptions, RunSpec
+from clfd_bench.harness.worker import lockstep_argv
+from clfd_bench.leaderboard.grid import (
+    DEFAULT_OPTIONS,
+    EXECUTORS,
+    GridOptions,
+    RunSpec,
+    lockstep_batches,
+)
 from clfd_bench.procs import PARENT_ENV
 from clfd_bench.runs import RunDir
 
@@ -73,25 +83,71 @@ def end_children() -> None:
             pass
 
 
+def _child(argv: list[str], log) -> int:
+    """Run ``argv`` with stdout and stderr to the open file ``log``; its exit code."""
+    # Own session and process group; the child arms its death signal itself (no
+    # preexec_fn: it is unsafe in a threaded parent), given this process's pid.
+    env = {**_run_env(), PARENT_ENV: str(os.getpid())}
+    child = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env,
+                             start_new_session=True)
+    with _CHILDREN_LOCK:
+        _CHILDREN.add(child)
+    try:
+        return child.wait()
+    finally:
+        with _CHILDREN_LOCK:
+            _CHILDREN.discard(child)
+
+
 def _run_command(argv: list[str], run_dir: Path) -> tuple[int, str]:
     """Run ``argv`` with its output appended to ``run_dir/train.log``; return (code, tail)."""
     run = RunDir(run_dir)
     with run.open_log() as log:
         log.write(f"\n$ {' '.join(argv)}\n".encode())
         log.flush()
-        # Own session and process group; the child arms its death signal itself (no
-        # preexec_fn: it is unsafe in a threaded parent), given this process's pid.
-        env = {**_run_env(), PARENT_ENV: str(os.getpid())}
-        child = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                 start_new_session=True)
-        with _CHILDREN_LOCK:
-            _CHILDREN.add(child)
-        try:
-            code = child.wait()
-        finally:
-            with _CHILDREN_LOCK:
-                _CHILDREN.discard(child)
+        code = _child(argv, log)
     return code, run.log_tail(_LOG_TAIL)
+
+
+def _run_lockstep(specs: list[RunSpec], root: Path) -> list[tuple[int, str]]:
+    """Run ``specs`` in one lockstep worker (``--outcomes FILE JOB ...``): each run's lines
+    reach its own ``train.log`` from the worker; the worker's own output goes to a file
+    beside the runs, copied into the log of every run it left without an outcome (a crash,
+    a kill). Returns each run's (code, log tail)."""
+    import json
+
+    root = Path(root)
+    (root / "runs").mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=".lockstep-", suffix=".json", dir=root / "runs")
+    os.close(fd)
+    outcomes_path = Path(name)
+    outcomes_path.unlink()
+    argv = lockstep_argv([spec.job(root) for spec in specs], str(outcomes_path))
+    runs = [RunDir(spec.run_dir(root)) for spec in specs]
+    names = ", ".join(spec.name for spec in specs)
+    for run in runs:
+        with run.open_log() as log:
+            log.write(f"\n$ clfd-bench worker, {len(specs)} runs in lockstep: {names}\n".encode())
+    with tempfile.TemporaryFile() as out:
+        code = _child(argv, out)
+        try:
+            codes = json.loads(outcomes_path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            codes = {}
+        finally:
+            outcomes_path.unlink(missing_ok=True)
+        out.seek(max(0, out.seek(0, os.SEEK_END) - _LOG_TAIL))
+        tail = out.read().decode("utf-8", "replace")
+    results = []
+    for spec, run in zip(specs, runs, strict=True):
+        run_code = codes.get(str(spec.run_dir(root)))
+        if run_code is None:  # the worker ended before this run's outcome
+            run_code = code or 1
+            with run.open_log() as log:
+                log.write(f"the lockstep worker ended with exit code {code} before this "
+                          f"run finished; its last output:\n{tail}\n".encode())
+        results.append((int(run_code), run.log_tail(_LOG_TAIL)))
+    return results
 
 
 def _record(spec: RunSpec, root: Path, code: int, tail: str, seconds: float) -> RunOutcome:
@@ -106,14 +162,22 @@ def _record(spec: RunSpec, root: Path, code: int, tail: str, seconds: float) -> 
     return RunOutcome(spec, False, error, seconds)
 
 
-def _local_one(spec: RunSpec, root: Path) -> RunOutcome:
+def _local_batch(batch: list[RunSpec], root: Path) -> list[RunOutcome]:
+    """One run in a worker of its own, or several in one lockstep worker."""
     start = time.perf_counter()
-    code, tail = _run_command(spec.worker_argv(root), spec.run_dir(root))
-    return _record(spec, root, code, tail, time.perf_counter() - start)
+    if len(batch) == 1:
+        (spec,) = batch
+        code, tail = _run_command(spec.worker_argv(root), spec.run_dir(root))
+        return [_record(spec, root, code, tail, time.perf_counter() - start)]
+    results = _run_lockstep(batch, root)
+    seconds = time.perf_counter() - start
+    return [_record(spec, root, code, tail, seconds)
+            for spec, (code, tail) in zip(batch, results, strict=True)]
 
 
 def _local(
-    specs: list[RunSpec], root: Path, workers: int, on_done: Callable[[RunOutcome], None]
+    specs: list[RunSpec], root: Path, workers: int, on_done: Callable[[RunOutcome], None],
+    lockstep: bool = True,
 ) -> list[RunOutcome]:
     outcomes = []
     previous = signal.getsignal(signal.SIGTERM)
@@ -122,11 +186,12 @@ def _local(
         signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     pool = ThreadPoolExecutor(max_workers=max(1, workers))
     try:
-        futures = [pool.submit(_local_one, spec, root) for spec in specs]
+        batches = lockstep_batches(specs, workers, lockstep)
+        futures = [pool.submit(_local_batch, batch, root) for batch in batches]
         for future in as_completed(futures):
-            outcome = future.result()
-            on_done(outcome)
-            outcomes.append(outcome)
+            for outcome in future.result():
+                on_done(outcome)
+                outcomes.append(outcome)
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
         end_children()
@@ -245,7 +310,7 @@ def execute_grid(
     """
     specs = list(specs)
     if options.executor == "local":
-        return _local(specs, Path(root), options.workers, on_done)
+        return _local(specs, Path(root), options.workers, on_done, options.lockstep)
     if options.executor == "ray":
         return _ray(specs, Path(root), options.address, on_done)
     raise ValueError(f"unknown executor {options.executor!r}; valid: {', '.join(EXECUTORS)}")

@@ -20,8 +20,12 @@ from clfd_bench.harness.run import TrainSpec
 from clfd_bench.harness.worker import Job
 from clfd_bench.runs import RunDir, RunStatus
 
-__all__ = ["DEFAULT_OPTIONS", "EXECUTORS", "GridOptions", "RunSpec", "make_grid",
-           "reread_simulator", "run_state", "run_status"]
+__all__ = ["DEFAULT_OPTIONS", "EXECUTORS", "MAX_LOCKSTEP", "GridOptions", "RunSpec",
+           "lockstep_batches", "lockstep_key", "make_grid", "reread_simulator", "run_state",
+           "run_status"]
+
+MAX_LOCKSTEP = 8
+"""The most runs one process trains in lockstep."""
 
 _SAFE = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -43,6 +47,8 @@ class GridOptions:
         executor: ``"local"`` (processes on this machine) or ``"ray"`` (:data:`EXECUTORS`).
         workers: parallel local worker processes.
         address: Ray cluster address (None: start a local Ray instance).
+        lockstep: let the local executor train runs that differ only in seed or order in
+            one process, in lockstep (:func:`lockstep_batches`); False: one process per run.
 
     Raises:
         InputError: ``workers`` below 1 or an unknown ``executor`` (one line naming the
@@ -55,6 +61,7 @@ class GridOptions:
     executor: str = "local"
     workers: int = 1
     address: str | None = None
+    lockstep: bool = True
 
     def __post_init__(self) -> None:
         from clfd_bench.harness.validate import InputError, check_count
@@ -258,3 +265,42 @@ def reread_simulator() -> None:
     from clfd_bench.execution.fingerprint import sim_fingerprint
 
     sim_fingerprint.cache_clear()
+
+
+def lockstep_key(spec: RunSpec) -> tuple | None:
+    """Under which key ``spec`` may train in lockstep with other runs of the same key, or
+    None when it gains nothing from it: runs differing only in seed and order, whose every
+    model is a NODE integrated by the fused fixed-step RK4 (the losses that
+    :func:`~clfd_bench.learning.objective.stack_key` stacks; adaptive solvers and stable
+    NODEs would only take turns on one core). Unresolvable configs: None (the run reports
+    its error alone)."""
+    try:
+        config = spec.config()
+    except Exception:  # noqa: BLE001 - reported by the run itself
+        return None
+    if config.node == "s" or not all(
+            cfg.solver == "rk4" and cfg.solver_backend == "fused" for _, cfg in config.parts):
+        return None
+    return (spec.dataset, spec.method, spec.profile, spec.node, spec.tasks, spec.sim,
+            spec.overrides, spec.config_file)
+
+
+def lockstep_batches(specs: list[RunSpec], workers: int, enabled: bool = True
+                     ) -> list[list[RunSpec]]:
+    """The grid's runs in the processes that run them: runs of one :func:`lockstep_key`
+    together, in batches of at most ``ceil(len(specs) / workers)`` (so every worker gets
+    work) and :data:`MAX_LOCKSTEP`, split evenly; every other run alone. The order of
+    ``specs`` is kept (by each batch's first run). ``enabled=False``: every run alone."""
+    if not enabled:
+        return [[spec] for spec in specs]
+    size = max(1, min(MAX_LOCKSTEP, -(-len(specs) // max(1, workers))))
+    groups: dict[object, list[RunSpec]] = {}
+    for i, spec in enumerate(specs):
+        key = lockstep_key(spec) if size > 1 else None
+        groups.setdefault(i if key is None else key, []).append(spec)
+    batches = []
+    for group in groups.values():
+        n = -(-len(group) // size)
+        batches += [group[j::n] for j in range(n)]
+    position = {spec: i for i, spec in enumerate(specs)}
+    return sorted(batches, key=lambda batch: position[batch[0]])
