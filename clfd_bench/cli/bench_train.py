@@ -16,6 +16,12 @@ target network (``--node s``: the stable NODE), ``--set solver_backend=autograd`
 mathematics without the fused solvers.
 
     clfd-bench bench train --methods sg hn --datasets lasa --profile fast --node s
+
+``--runs 1 5`` also times 5 runs (seeds ``--seed`` .. ``--seed + 4``) trained in lockstep in
+one process, as a grid trains seeds (:func:`clfd_bench.harness.loop.train_tasks`), and reports
+runs x iterations per second: what a grid of seeds gets from one core.
+
+    clfd-bench bench train --methods hn --datasets helloworld --profile fast --runs 1 5
 """
 
 from __future__ import annotations
@@ -58,6 +64,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--node", choices=tuple(NODE_VARIANTS), default="t",
                    help=NODE_HELP + "; the original's speeds are for t")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--runs", type=int, nargs="+", default=[1], metavar="R",
+                   help="runs trained together in lockstep, one timing per value "
+                        "(default 1; e.g. --runs 1 5)")
     p.add_argument("--json", dest="json_out", default=None, help="also write rows to this file")
     p.set_defaults(func=_run)
 
@@ -73,11 +82,15 @@ def bench_method(
     overrides: tuple[str, ...] = (),
     seed: int = 0,
     node: str = "t",
+    runs: int = 1,
 ) -> list[dict]:
     """Time training iterations of ``method`` on ``dataset`` -> one row per timed task.
 
     Earlier tasks are learned with ``warmup`` iterations only; each timed task runs
-    ``warmup`` untimed iterations (separately) and then ``iterations`` timed ones.
+    ``warmup`` untimed iterations (separately) and then ``iterations`` timed ones. With
+    ``runs > 1``, that many runs (seeds ``seed, seed + 1, ...``) train in lockstep
+    (:func:`~clfd_bench.harness.loop.train_tasks`); ``it_per_s`` is then each run's and
+    ``runs_it_per_s`` all runs' iterations per second.
     """
     import dataclasses
 
@@ -86,40 +99,53 @@ def bench_method(
     from clfd_bench.data import load_dataset
     from clfd_bench.harness.config import resolve_config
     from clfd_bench.harness.learner import Learner
-    from clfd_bench.harness.loop import train_task, warm_up
+    from clfd_bench.harness.loop import TaskRun, train_tasks, warm_up
+    from clfd_bench.harness.validate import check_count
 
+    check_count("--runs", runs)
     warm_up()
     config = resolve_config(method, dataset, profile, seed=seed, overrides=overrides, node=node)
     ds = load_dataset(dataset)
-    torch.manual_seed(seed)
-    learner = Learner.from_config(config, ds[0].dim)
+    learners = []
+    for r in range(runs):
+        torch.manual_seed(seed + r)
+        learners.append(Learner.from_config(config, ds[0].dim))
     rows = []
-    for kind, part in learner.parts.items():
+    for kind, part in learners[0].parts.items():
         budget = part.cfg.iterations
         short = dataclasses.replace(part.cfg, iterations=max(1, warmup))
         timed = dataclasses.replace(part.cfg, iterations=iterations)
         for index in range(max(tasks) + 1):
-            gen = torch.Generator().manual_seed(seed + index)
-            data = part.add_task(ds[index])
+            units = []
+            for r, learner in enumerate(learners):
+                own = learner.parts[kind]
+                torch.manual_seed(seed + r + 7919 * index)
+                units.append(TaskRun(own.method, index, own.add_task(ds[index]), short,
+                                     torch.Generator().manual_seed(seed + r + index),
+                                     rng_state=torch.get_rng_state()))
+            train_tasks(units)  # a short task before a timed one: untimed warm-up
             if index not in tasks:
-                train_task(part.method, index, data, short, gen)
                 continue
-            train_task(part.method, index, data, short, gen)  # untimed warm-up
+            for unit in units:
+                unit.cfg = timed
             start = time.perf_counter()
-            stats = train_task(part.method, index, data, timed, gen)
-            rate = stats.iterations_per_s
+            stats = train_tasks(units)
+            wall = time.perf_counter() - start
+            loop_s = max(st.loop_seconds for st in stats)
+            rate = stats[0].iterations / loop_s
             ref = (REFERENCE_IT_PER_S.get((method, dataset))
-                   if index == 0 and node == "t" else None)
+                   if index == 0 and node == "t" and runs == 1 else None)
             rows.append({
                 "method": method, "dataset": dataset, "node": node, "part": kind,
-                "task": index,
+                "task": index, "runs": runs,
                 "it_per_s": rate,
+                "runs_it_per_s": rate * runs,
                 "s_per_task_paper_budget": budget / rate if rate > 0 else None,
                 "paper_iterations": budget,
-                "hooks_s": stats.seconds - stats.loop_seconds,
+                "hooks_s": max(st.seconds - st.loop_seconds for st in stats),
                 "reference_it_per_s": ref,
                 "speedup_vs_reference": rate / ref if ref else None,
-                "wall_s": time.perf_counter() - start,
+                "wall_s": wall,
             })
     return rows
 
@@ -129,6 +155,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.protocol import default_threads
+    from clfd_bench.harness.validate import InputError
     from clfd_bench.methods import UnknownMethodError
 
     threads = args.threads or default_threads()
@@ -136,29 +163,33 @@ def _run(args: argparse.Namespace) -> int:
     print(f"training speed, profile {args.profile!r} model sizes, {node_label(args.node)}, "
           f"{threads} torch thread(s); "
           f"{args.iterations} timed iterations per task")
-    header = (f"{'method':<6} {'dataset':<11} {'part':<11} {'task':>4} {'it/s':>8} "
-              f"{'s/task (paper its)':>19} {'hooks s':>8} {'vs original':>12}")
+    header = (f"{'method':<6} {'dataset':<11} {'part':<11} {'task':>4} {'runs':>4} "
+              f"{'it/s':>8} {'runs*it/s':>9} {'s/task (paper its)':>19} {'hooks s':>8} "
+              f"{'vs original':>12}")
     print(header)
     print("-" * len(header))
     all_rows = []
     for dataset in args.datasets:
         for method in args.methods:
-            try:
-                rows = bench_method(
-                    method, dataset, profile=args.profile, iterations=args.iterations,
-                    warmup=args.warmup, tasks=tuple(args.tasks),
-                    overrides=tuple(args.overrides), seed=args.seed, node=args.node,
-                )
-            except (ConfigError, UnknownMethodError) as exc:
-                print(f"clfd-bench bench train: error: {exc}", file=sys.stderr)
-                return 2
-            for r in rows:
-                vs = (f"{r['speedup_vs_reference']:.1f}x of {r['reference_it_per_s']:.0f}"
-                      if r["speedup_vs_reference"] else "")
-                print(f"{r['method']:<6} {r['dataset']:<11} {r['part']:<11} {r['task']:>4} "
-                      f"{r['it_per_s']:>8.1f} {r['s_per_task_paper_budget']:>19.0f} "
-                      f"{r['hooks_s']:>8.1f} {vs:>12}", flush=True)
-            all_rows += rows
+            for runs in args.runs:
+                try:
+                    rows = bench_method(
+                        method, dataset, profile=args.profile, iterations=args.iterations,
+                        warmup=args.warmup, tasks=tuple(args.tasks),
+                        overrides=tuple(args.overrides), seed=args.seed, node=args.node,
+                        runs=runs,
+                    )
+                except (ConfigError, UnknownMethodError, InputError) as exc:
+                    print(f"clfd-bench bench train: error: {exc}", file=sys.stderr)
+                    return 2
+                for r in rows:
+                    vs = (f"{r['speedup_vs_reference']:.1f}x of {r['reference_it_per_s']:.0f}"
+                          if r["speedup_vs_reference"] else "")
+                    print(f"{r['method']:<6} {r['dataset']:<11} {r['part']:<11} "
+                          f"{r['task']:>4} {r['runs']:>4} {r['it_per_s']:>8.1f} "
+                          f"{r['runs_it_per_s']:>9.1f} {r['s_per_task_paper_budget']:>19.0f} "
+                          f"{r['hooks_s']:>8.1f} {vs:>12}", flush=True)
+                all_rows += rows
     if args.json_out:
         from clfd_bench.io import atomic_write_json
 
