@@ -46,6 +46,9 @@ class MLPTape:
         record: keep activations (needed for :meth:`vjp`).
     """
 
+    _matmul = staticmethod(torch.mm)
+    """The product of :meth:`vjp` (a stacked tape's is ``torch.bmm``)."""
+
     def __init__(self, w0y: Tensor, w0t: Tensor | None, b0: Tensor, rest: Sequence[Tensor],
                  act: str, record: bool):
         if act not in FUSED_ACTIVATIONS:
@@ -110,10 +113,10 @@ class MLPTape:
         n = len(self.weights)
         self._grad_outs[n].append(g)
         for j in range(n - 1, -1, -1):
-            g = _act_backward(self.act, torch.mm(g, self.weights[j]), a[j + 1])
+            g = _act_backward(self.act, self._matmul(g, self.weights[j]), a[j + 1])
             self._grad_outs[j].append(g)
         self._order.append(e)
-        return torch.mm(g, self.w0y)
+        return self._matmul(g, self.w0y)
 
     def weight_grads(self) -> tuple[Tensor, Tensor | None, Tensor, list[Tensor]]:
         """``(dW0y, dw0t, db0, [dW1, db1, ...])`` summed over every :meth:`vjp` call."""

@@ -19,7 +19,8 @@ from torch import Tensor
 
 from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, MLPTape
 
-__all__ = ["FUSED_ACTIVATIONS", "rk4_mlp", "sweep_forward", "sweep_reverse"]
+__all__ = ["FUSED_ACTIVATIONS", "rk4_march", "rk4_march_reverse", "rk4_mlp", "sweep_forward",
+           "sweep_reverse"]
 
 
 def sweep_forward(tape, y0: Tensor, times: Tensor, substeps: int):
@@ -52,6 +53,15 @@ def sweep_forward(tape, y0: Tensor, times: Tensor, substeps: int):
     def f(u: Tensor, r: int) -> Tensor:
         return tape(stage_times[r], u, None if rows is None else rows[r])
 
+    return torch.stack(rk4_march(f, y0, step_h, n_out, substeps), dim=1), step_h
+
+
+def rk4_march(f, y0: Tensor, step_h: list, n_out: int, substeps: int) -> list[Tensor]:
+    """The classic RK4 steps every fused sweep takes: ``substeps`` steps per output interval,
+    ``f(u, r)`` the field at stage ``r`` (stages ``3 s``, ``3 s + 1``, ``3 s + 2`` of step ``s``
+    are its times t, t + h/2, t + h). Step sizes are Python floats (times shared by every
+    sample) or tensors broadcasting against the states (per-sample times), each with its own
+    arithmetic. Returns the ``n_out`` states at the output times, ``y0`` first."""
     y = y0
     out = [y0]
     step = 0
@@ -59,22 +69,55 @@ def sweep_forward(tape, y0: Tensor, times: Tensor, substeps: int):
         for _ in range(substeps):
             hh = step_h[step]
             r = 3 * step
-            if per_sample:
-                k1 = f(y, r)
-                k2 = f(torch.addcmul(y, hh, k1, value=0.5), r + 1)
-                k3 = f(torch.addcmul(y, hh, k2, value=0.5), r + 1)
-                k4 = f(torch.addcmul(y, hh, k3), r + 2)
-                y = torch.addcmul(y, hh, torch.add(k1 + k4, k2 + k3, alpha=2.0), value=1 / 6)
-            else:
+            if isinstance(hh, float):
                 half = 0.5 * hh
                 k1 = f(y, r)
                 k2 = f(torch.add(y, k1, alpha=half), r + 1)
                 k3 = f(torch.add(y, k2, alpha=half), r + 1)
                 k4 = f(torch.add(y, k3, alpha=hh), r + 2)
                 y = torch.add(y, torch.add(k1 + k4, k2 + k3, alpha=2.0), alpha=hh / 6)
+            else:
+                k1 = f(y, r)
+                k2 = f(torch.addcmul(y, hh, k1, value=0.5), r + 1)
+                k3 = f(torch.addcmul(y, hh, k2, value=0.5), r + 1)
+                k4 = f(torch.addcmul(y, hh, k3), r + 2)
+                y = torch.addcmul(y, hh, torch.add(k1 + k4, k2 + k3, alpha=2.0), value=1 / 6)
             step += 1
         out.append(y)
-    return torch.stack(out, dim=1), step_h
+    return out
+
+
+def rk4_march_reverse(vjp, step_h: list, substeps: int, grads: list[Tensor]) -> Tensor:
+    """The reverse of :func:`rk4_march`: ``grads[k]`` the gradient w.r.t. output ``k``,
+    ``vjp(g, e)`` the field's vector-Jacobian product at evaluation ``e`` (evaluation
+    ``4 s + i`` is stage ``i + 1`` of step ``s``). Returns the gradient w.r.t. ``y0``."""
+    # Reverse sweep of y' = y + h/6 (k1 + 2 k2 + 2 k3 + k4) with k1 = f(y),
+    # k2 = f(y + h/2 k1), k3 = f(y + h/2 k2), k4 = f(y + h k3).
+
+    def scaled(c: float, hh, g: Tensor) -> Tensor:
+        return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
+
+    def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
+        if isinstance(hh, float):
+            return torch.add(y, g, alpha=c * hh)
+        return torch.addcmul(y, hh, g, value=c)
+
+    ybar = grads[-1]
+    step = len(step_h)
+    for k in range(len(grads) - 2, -1, -1):
+        for _ in range(substeps):
+            step -= 1
+            hh = step_h[step]
+            e0 = 4 * step
+            k1b = scaled(1.0 / 6.0, hh, ybar)
+            k2b = scaled(1.0 / 3.0, hh, ybar)
+            u4 = vjp(k1b, e0 + 3)
+            u3 = vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
+            u2 = vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
+            u1 = vjp(axpy(k1b, 0.5, hh, u2), e0)
+            ybar = ybar + (u4 + u3) + (u2 + u1)
+        ybar = ybar + grads[k]
+    return ybar
 
 
 class _RK4MLP(torch.autograd.Function):
@@ -96,35 +139,8 @@ class _RK4MLP(torch.autograd.Function):
 def sweep_reverse(tape, step_h: list, substeps: int, grad_out: Tensor) -> Tensor:
     """The reverse sweep of :func:`sweep_forward` for the output gradient ``grad_out: [B, K, D]``:
     returns the gradient w.r.t. ``y0`` and leaves the weight gradients on ``tape``."""
-    # Reverse sweep of y' = y + h/6 (k1 + 2 k2 + 2 k3 + k4) with k1 = f(y),
-    # k2 = f(y + h/2 k1), k3 = f(y + h/2 k2), k4 = f(y + h k3); evaluation 4 s + i is
-    # stage i + 1 of step s.
     tape.start_reverse()
-
-    def scaled(c: float, hh, g: Tensor) -> Tensor:
-        return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
-
-    def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
-        if isinstance(hh, float):
-            return torch.add(y, g, alpha=c * hh)
-        return torch.addcmul(y, hh, g, value=c)
-
-    ybar = grad_out[:, -1]
-    step = len(step_h)
-    for k in range(grad_out.shape[1] - 2, -1, -1):
-        for _ in range(substeps):
-            step -= 1
-            hh = step_h[step]
-            e0 = 4 * step
-            k1b = scaled(1.0 / 6.0, hh, ybar)
-            k2b = scaled(1.0 / 3.0, hh, ybar)
-            u4 = tape.vjp(k1b, e0 + 3)
-            u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
-            u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
-            u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
-            ybar = ybar + (u4 + u3) + (u2 + u1)
-        ybar = ybar + grad_out[:, k]
-    return ybar
+    return rk4_march_reverse(tape.vjp, step_h, substeps, list(grad_out.unbind(1)))
 
 
 def rk4_mlp(

@@ -25,7 +25,8 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from clfd_bench.learning.fused_mlp import _ACT, FUSED_ACTIVATIONS, _act_backward
+from clfd_bench.learning.fused_mlp import _ACT, FUSED_ACTIVATIONS, MLPTape
+from clfd_bench.learning.rk4_fused import rk4_march, rk4_march_reverse
 
 __all__ = [
     "FUSED_ACTIVATIONS",
@@ -36,11 +37,12 @@ __all__ = [
 ]
 
 
-class StackedMLPTape:
+class StackedMLPTape(MLPTape):
     """Evaluations of R independent MLP vector fields, recorded for a later reverse pass.
 
-    The batched analogue of :class:`~clfd_bench.learning.fused_mlp.MLPTape`; every tensor has a
-    leading dimension R (one slice per field).
+    The batched analogue of :class:`~clfd_bench.learning.fused_mlp.MLPTape` (whose reverse
+    pass, :meth:`~clfd_bench.learning.fused_mlp.MLPTape.vjp`, it runs with batched products);
+    every tensor has a leading dimension R (one slice per field).
 
     Args:
         w0y: ``[R, H, D]`` first-layer weights on the state.
@@ -52,6 +54,8 @@ class StackedMLPTape:
         rows: field ``r``'s states are the first ``rows[r]`` of B (None: all B); the weight
             gradients sum over those only.
     """
+
+    _matmul = staticmethod(torch.bmm)
 
     def __init__(self, w0y: Tensor, w0t: Tensor | None, b0: Tensor, rest: Sequence[Tensor],
                  act: str, record: bool, rows: Sequence[int] | None = None):
@@ -114,30 +118,6 @@ class StackedMLPTape:
                              for b in self.biases]
         self._full_b0 = self._b0.expand(r, batch, self._b0.shape[2]).contiguous()
         self._batch = batch
-
-    @property
-    def num_evals(self) -> int:
-        """Evaluations recorded so far (the index of the next one)."""
-        return len(self.acts)
-
-    def start_reverse(self) -> None:
-        """Clear the recorded gradients (a reverse pass may run more than once)."""
-        self._grad_outs = [[] for _ in range(len(self.weights) + 1)]
-        self._order = []
-
-    def vjp(self, g: Tensor, e: int) -> Tensor:
-        """``J_e^T g`` for ``g: [R, B, D]``: the gradient w.r.t. evaluation ``e``'s input.
-
-        Records the layer gradients for :meth:`weight_grads`.
-        """
-        a = self.acts[e]
-        n = len(self.weights)
-        self._grad_outs[n].append(g)
-        for j in range(n - 1, -1, -1):
-            g = _act_backward(self.act, torch.bmm(g, self.weights[j]), a[j + 1])
-            self._grad_outs[j].append(g)
-        self._order.append(e)
-        return torch.bmm(g, self.w0y)
 
     def weight_grads(self) -> tuple[Tensor, Tensor | None, Tensor, list[Tensor]]:
         """``(dW0y, dw0t, db0, [dW1, db1, ...])`` (each ``[R, ...]``) summed over every
@@ -217,9 +197,8 @@ def _stage_schedule(times: Tensor, substeps: int):
 
 def stacked_sweep_forward(tape: StackedMLPTape, y0: Tensor, times: Tensor, substeps: int):
     """The RK4 sweep of all R fields through ``tape``; returns ``([R, B, K, D] states, step
-    sizes)``. The arithmetic is that of ``sweep_forward``'s branch for these times (per
-    sample: tensor steps; shared: Python-float steps)."""
-    per_sample = times.dim() == 3
+    sizes)``: the steps of :func:`~clfd_bench.learning.rk4_fused.rk4_march`, as
+    ``sweep_forward`` takes them (per sample: tensor steps; shared: Python-float steps)."""
     n_out = times.shape[-1]
     step_h, stage_times, stage_t, n_steps = _stage_schedule(times, substeps)
     if tape.w0t is None:
@@ -230,62 +209,16 @@ def stacked_sweep_forward(tape: StackedMLPTape, y0: Tensor, times: Tensor, subst
     def f(u: Tensor, r: int) -> Tensor:
         return tape(stage_times[r], u, None if rows is None else rows[r])
 
-    y = y0
-    out = [y0]
-    step = 0
-    for _ in range(n_out - 1):
-        for _ in range(substeps):
-            hh = step_h[step]
-            r = 3 * step
-            if per_sample:
-                k1 = f(y, r)
-                k2 = f(torch.addcmul(y, hh, k1, value=0.5), r + 1)
-                k3 = f(torch.addcmul(y, hh, k2, value=0.5), r + 1)
-                k4 = f(torch.addcmul(y, hh, k3), r + 2)
-                y = torch.addcmul(y, hh, torch.add(k1 + k4, k2 + k3, alpha=2.0), value=1 / 6)
-            else:
-                half = 0.5 * hh
-                k1 = f(y, r)
-                k2 = f(torch.add(y, k1, alpha=half), r + 1)
-                k3 = f(torch.add(y, k2, alpha=half), r + 1)
-                k4 = f(torch.add(y, k3, alpha=hh), r + 2)
-                y = torch.add(y, torch.add(k1 + k4, k2 + k3, alpha=2.0), alpha=hh / 6)
-            step += 1
-        out.append(y)
-    return torch.stack(out, dim=2), step_h
+    return torch.stack(rk4_march(f, y0, step_h, n_out, substeps), dim=2), step_h
 
 
 def stacked_sweep_reverse(tape: StackedMLPTape, step_h: list, substeps: int,
                           grad_out: Tensor) -> Tensor:
     """The reverse sweep of :func:`stacked_sweep_forward` for ``grad_out: [R, B, K, D]``:
-    returns the gradient w.r.t. ``y0`` and leaves the weight gradients on ``tape``. The
-    arithmetic is that of ``sweep_reverse``."""
+    returns the gradient w.r.t. ``y0`` and leaves the weight gradients on ``tape``
+    (:func:`~clfd_bench.learning.rk4_fused.rk4_march_reverse`, as ``sweep_reverse``)."""
     tape.start_reverse()
-
-    def scaled(c: float, hh, g: Tensor) -> Tensor:
-        return torch.mul(g, c * hh) if isinstance(hh, float) else g * (hh * c)
-
-    def axpy(y: Tensor, c: float, hh, g: Tensor) -> Tensor:
-        if isinstance(hh, float):
-            return torch.add(y, g, alpha=c * hh)
-        return torch.addcmul(y, hh, g, value=c)
-
-    ybar = grad_out[:, :, -1]
-    step = len(step_h)
-    for k in range(grad_out.shape[2] - 2, -1, -1):
-        for _ in range(substeps):
-            step -= 1
-            hh = step_h[step]
-            e0 = 4 * step
-            k1b = scaled(1.0 / 6.0, hh, ybar)
-            k2b = scaled(1.0 / 3.0, hh, ybar)
-            u4 = tape.vjp(k1b, e0 + 3)
-            u3 = tape.vjp(axpy(k2b, 1.0, hh, u4), e0 + 2)
-            u2 = tape.vjp(axpy(k2b, 0.5, hh, u3), e0 + 1)
-            u1 = tape.vjp(axpy(k1b, 0.5, hh, u2), e0)
-            ybar = ybar + (u4 + u3) + (u2 + u1)
-        ybar = ybar + grad_out[:, :, k]
-    return ybar
+    return rk4_march_reverse(tape.vjp, step_h, substeps, list(grad_out.unbind(2)))
 
 
 class _RK4MLPStacked(torch.autograd.Function):
