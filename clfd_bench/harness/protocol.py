@@ -301,8 +301,13 @@ class _ProtocolRun:
         return TaskRun(part.method, i, data, part.cfg, generator,
                        f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state())
 
-    def record_part(self, kind: str, stats: TrainStats) -> None:
-        """What training part ``kind`` on the current task took."""
+    def record_part(self, kind: str, stats: TrainStats, share: int = 1) -> None:
+        """What training part ``kind`` on the current task took; ``share``: the runs it was
+        learned with in lockstep, whose wall time is divided between them (the run's share;
+        so a run's seconds and it/s do not depend on how many runs shared its process)."""
+        if share > 1:
+            stats = dataclasses.replace(stats, seconds=stats.seconds / share,
+                                        loop_seconds=stats.loop_seconds / share)
         state = self.state
         self._times[kind] = stats.seconds
         state["train_time_s_by_part"][kind].append(stats.seconds)
@@ -408,7 +413,7 @@ def run_trainings(jobs: Sequence[TrainingJob], *, threads: int | None = None
                 if isinstance(result, TrainingDivergedError):
                     outcome[k] = result
                 else:
-                    runs[k].record_part(kind, result)
+                    runs[k].record_part(kind, result, share=len(members))
         trained = [k for k in active if alive(k)]
         cpu_s = (time.process_time() - cpu_start) / max(1, len(active))
         for k in trained:

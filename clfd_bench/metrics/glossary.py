@@ -144,11 +144,12 @@ SECTIONS: tuple[tuple[str, str, tuple[Term, ...]], ...] = (
                  "SSS unchanged).",
                  better="higher"),
             Term("train_time_s", "train s",
-                 "wall-clock seconds of training, summed over the run's tasks.",
+                 "wall-clock seconds of training, summed over the run's tasks (runs trained "
+                 "together in lockstep: each its share, the batch's time over its runs).",
                  better="lower"),
             Term("train_cpu_s", "train CPU s",
                  "CPU seconds of the training process, summed over the run's tasks (when every "
-                 "task recorded them).",
+                 "task recorded them; in lockstep, each run's share).",
                  better="lower"),
             Term("final_params", "params",
                  "the parameter count after the last task (RoboTasks: of the position model).",
