@@ -316,8 +316,9 @@ def train_tasks(runs: list[TaskRun]) -> list[TrainStats | TrainingDivergedError]
     each run's loss depends on its own weights only, so each run gets its own gradient).
     Everything else is each run's own: its batches and task picks (its generator), its
     optimiser, schedule and stop rule (a run that stops leaves the others going), its hooks,
-    run with its own global RNG state. Each run's result equals :func:`train_task`'s for it
-    alone up to float summation order.
+    run with its own global RNG state. Each run's result is :func:`train_task`'s for it
+    alone, bit for bit (the stacked pass is used only where it is exact: see
+    :func:`~clfd_bench.learning.objective.stacked_trajectory_losses`).
 
     Returns:
         per run, its :class:`TrainStats`, or the :class:`TrainingDivergedError` that ended it

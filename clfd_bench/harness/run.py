@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 import sys
+import traceback
 from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass
@@ -217,9 +218,9 @@ def run_lockstep(
 ) -> list[dict[str, Any] | Exception]:
     """Runs (or resumes) several training runs in this process, their tasks learned in
     lockstep (:func:`~clfd_bench.harness.protocol.run_trainings`); each run is what
-    :func:`run` makes of it alone, up to float summation order: its directory locked for the
-    whole call, its predictions, checkpoints and results, with ``sim`` its executions after
-    each task and at the end.
+    :func:`run` makes of it alone, bit for bit: its directory locked for the whole call, its
+    predictions, checkpoints and results, with ``sim`` its executions after each task and at
+    the end.
 
     Args:
         trainings: the runs (differing in seed or order; the first one's ``threads`` is used).
@@ -335,8 +336,6 @@ def checked_lockstep(trainings: Sequence[Training], outs: Sequence[str | os.Path
     each run's inputs checked, then all run together; each run's outcome (its summary, or
     its one-line error, or for a bug its traceback) goes to its own ``logs[k]``. Returns
     each run's exit code, as :func:`checked_run` would give it alone."""
-    import traceback
-
     from clfd_bench.harness.validate import check_dataset, check_robot_model, check_run_out_dir
 
     codes: list[int | None] = [None] * len(trainings)
@@ -349,12 +348,12 @@ def checked_lockstep(trainings: Sequence[Training], outs: Sequence[str | os.Path
                 check_robot_model()
             ready.append(k)
         except Exception as exc:  # noqa: BLE001 - reported per run below
-            codes[k] = _reported(exc, out, prog, logs[k], traceback)
+            codes[k] = _reported(exc, out, prog, logs[k])
     results = run_lockstep([trainings[k] for k in ready], [outs[k] for k in ready], sim=sim,
                            sim_workers=sim_workers, logs=[logs[k] for k in ready])
     for k, result in zip(ready, results, strict=True):
         if isinstance(result, Exception):
-            codes[k] = _reported(result, outs[k], prog, logs[k], traceback)
+            codes[k] = _reported(result, outs[k], prog, logs[k])
             continue
         for line in summary_lines(result, RunDir(outs[k]).results_path):
             logs[k](line)
@@ -362,7 +361,7 @@ def checked_lockstep(trainings: Sequence[Training], outs: Sequence[str | os.Path
     return [int(c) for c in codes]  # type: ignore[arg-type]
 
 
-def _reported(exc: Exception, out, prog: str, log: Log, traceback) -> int:
+def _reported(exc: Exception, out: str | os.PathLike[str], prog: str, log: Log) -> int:
     """:func:`failure` for one run of several: a bug's traceback goes to the run's log
     (exit code 1) instead of ending the others."""
     try:
