@@ -222,7 +222,9 @@ def results_document(
             ``iterations_by_part`` (optimiser steps each task ran; fewer than the config's
             ``iterations`` when the stop rule ended it; missing or None: not known),
             ``final_loss_by_part``; optionally ``train_cpu_s`` (``[M]``, this process's CPU
-            seconds per task, None where unknown; absent for external predictions).
+            seconds per task, None where unknown; absent for external predictions) and
+            ``solver_gap_by_part`` (per task, :meth:`~clfd_bench.harness.learner.PartLearner.
+            solver_gap`: the fine solution's distance from the training solver's).
         complete: every task of the run is learned.
         provenance: what ``results.json`` records as ``provenance``.
         checkpoint: the checkpoint file relative to the run directory (None: none).
@@ -256,6 +258,7 @@ def results_document(
         "iterations_per_s_by_part": state["iterations_per_s_by_part"],
         "iterations_by_part": state.get("iterations_by_part"),
         "final_loss_by_part": state["final_loss_by_part"],
+        "solver_gap_by_part": state.get("solver_gap_by_part"),
         "num_params": state["num_params"],
         "num_params_by_part": state["num_params_by_part"],
         "stored_samples": state["stored_samples"],

@@ -31,9 +31,10 @@ from clfd_bench.harness.loop import (
     train_task,
 )
 from clfd_bench.harness.run_config import RunConfig
+from clfd_bench.learning.batches import subsample_index
 from clfd_bench.learning.node import NodeSpec
 from clfd_bench.learning.normalize import Normalizer
-from clfd_bench.learning.odeint import integrate
+from clfd_bench.learning.odeint import FIXED_SOLVERS, SolverSpec, integrate
 from clfd_bench.learning.stable import StableSpec
 from clfd_bench.learning.tangent import quat_exp_relative, quat_log_relative
 from clfd_bench.methods import Method, TaskData, get_method_class
@@ -189,6 +190,7 @@ class PartLearner:
         starts: np.ndarray,
         times: np.ndarray,
         goals: np.ndarray | None = None,
+        solver: SolverSpec | None = None,
     ) -> np.ndarray:
         """Integrate task ``index``'s NODE from ``starts`` over ``times``.
 
@@ -200,6 +202,7 @@ class PartLearner:
             goals: orientation only: ``[N, 4]`` or ``[4]`` goal quaternions for the tangent
                 map; default: the task's goal (for ``tangent_goal = "demo"`` pass each demo's
                 final quaternion to reproduce the paper's protocol).
+            solver: how to integrate (default: the config's ``eval_solver``).
 
         Returns:
             ``[N, T, 2|3]`` positions or ``[N, T, 4]`` unit quaternions, in data units.
@@ -210,7 +213,8 @@ class PartLearner:
         t = torch.tensor(self.node_times(index, times), dtype=torch.float32)
         self.method.eval()
         try:
-            out = integrate(self.method.field(index), y0, t, solver_spec(self.cfg, evaluation=True))
+            out = integrate(self.method.field(index), y0, t,
+                            solver or solver_spec(self.cfg, evaluation=True))
         except (FloatingPointError, AssertionError, RuntimeError) as exc:
             if not solver_blew_up(exc):
                 raise
@@ -220,6 +224,34 @@ class PartLearner:
                 self.method.num_tasks - 1,
             ) from exc
         return self.data_states(index, out.double().numpy(), goals)
+
+    def solver_gap(self, index: int, task: Task, goals: np.ndarray | None = None
+                   ) -> float | None:
+        """How far task ``index``'s model, integrated as training integrates it, is from the
+        same model integrated as predictions are: the largest distance over the demos' starts
+        and the training samples (positions: data units; orientation: degrees). A fixed-step
+        training solver (``trajectories`` batches: one step, or ``substeps``, per subsampled
+        interval) sees the field only at its stages, so a field can fit the demos through
+        those steps while its ODE, solved finely, does something else in between; the
+        prediction is the ODE's. None where training's steps follow the solution (adaptive
+        solvers) or are the data's own (``windows``).
+
+        Args:
+            goals: orientation only, as for :meth:`predict`.
+        """
+        cfg = self.cfg
+        if cfg.solver not in FIXED_SOLVERS or cfg.batch != "trajectories":
+            return None
+        times = np.asarray(task.times, dtype=np.float64)
+        idx = subsample_index(len(times), cfg.points)
+        raw = task.positions if self.kind == "position" else task.quaternions
+        starts = np.asarray(raw)[:, 0]
+        coarse = self.predict(index, starts, times[idx], goals, solver=solver_spec(self.cfg))
+        fine = self.predict(index, starts, times, goals)[:, idx]
+        if self.kind == "position":
+            return float(np.linalg.norm(coarse - fine, axis=-1).max())
+        dot = np.clip(np.abs((coarse * fine).sum(-1)), 0.0, 1.0)
+        return float(np.degrees(2.0 * np.arccos(dot)).max())
 
     # -- checkpoint -------------------------------------------------------------------
     def header(self) -> dict[str, Any]:
@@ -319,6 +351,13 @@ class Learner:
         pos = self.parts["position"].predict(index, starts[:, :3], times)
         quat = self.parts["orientation"].predict(index, starts[:, 3:], times, goals)
         return np.concatenate([pos, quat], axis=-1)
+
+    def solver_gaps(self, index: int, task: Task) -> dict[str, float | None]:
+        """:meth:`PartLearner.solver_gap` of every part for ``task``'s demos (the goals the
+        protocol passes)."""
+        goals = self.demo_goals(task)
+        return {kind: part.solver_gap(index, task, goals if kind == "orientation" else None)
+                for kind, part in self.parts.items()}
 
     def demo_goals(self, task: Task) -> np.ndarray | None:
         """The goals the protocol passes for ``task``'s demos (None for planar data)."""

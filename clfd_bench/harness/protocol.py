@@ -149,6 +149,7 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
         "iterations_per_s_by_part": {p: [] for p in parts},
         "iterations_by_part": {p: [] for p in parts},
         "final_loss_by_part": {p: [] for p in parts},
+        "solver_gap_by_part": {p: [] for p in parts},
         "num_params": [],
         "num_params_by_part": {p: [] for p in parts},
         "stored_samples": [],
@@ -252,6 +253,9 @@ class _ProtocolRun:
             # runs saved before the stop rule existed ran every iteration of every task
             saved_state.setdefault("iterations_by_part", {
                 kind: [config.part(kind).iterations] * done for kind in learner.parts})
+            # runs saved before the solver gap was measured: unknown for their tasks
+            saved_state.setdefault("solver_gap_by_part", {
+                kind: [None] * done for kind in learner.parts})
             if done > n_tasks:
                 raise RunMismatchError(
                     f"{out} already holds {done} learned tasks, more than the {n_tasks} asked "
@@ -344,6 +348,8 @@ class _ProtocolRun:
             preds.append(pred)
             for metric, values in task_errors(tj, pred).items():
                 state["errors"][metric][i][j] = values
+        for kind, gap in learner.solver_gaps(i, task).items():
+            state["solver_gap_by_part"][kind].append(gap)
         self.run.save_predictions(i, preds)
         headers, tensors = _checkpoint_payload(learner)
         header = json_safe({"config": self.config.to_dict(), "dim": self.dim, "parts": headers,
@@ -477,6 +483,14 @@ def _summary_line(config: RunConfig, name: str, i: int, n: int, state: dict,
                if config.part(kind).stop_window > 0]
     if stopped:
         speeds += "; " + ", ".join(stopped)
+    gaps = [(kind, values[-1]) for kind, values in state["solver_gap_by_part"].items()
+            if values and values[-1] is not None]
+    shown_gaps = [f"{kind} {gap * scale:.1f} {shown}" if kind == "position"
+                  else f"{kind} {gap:.1f} deg" for kind, gap in gaps
+                  if (gap * scale if kind == "position" else gap) >= 0.1]
+    if shown_gaps:  # display precision, not a verdict (results.json has every value)
+        speeds += ("; the fine solution is off the training solver's by "
+                   + ", ".join(shown_gaps))
     return (
         f"[{config.method} {config.dataset} seed {config.seed}] task {i + 1}/{n} {name!r}: "
         f"trained in {state['train_time_s'][-1]:.1f}s ({speeds}); mean DTW of seen tasks "

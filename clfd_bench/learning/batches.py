@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-__all__ = ["BATCH_KINDS", "BatchSampler", "BatchSpec"]
+__all__ = ["BATCH_KINDS", "BatchSampler", "BatchSpec", "subsample_index"]
 
 BATCH_KINDS = ("windows", "trajectories")
 
@@ -53,6 +53,13 @@ class BatchSpec:
             )
 
 
+def subsample_index(n_steps: int, points: int) -> np.ndarray:
+    """``[P]`` the samples a ``trajectories`` batch keeps of ``n_steps``: ``points`` of them
+    evenly spread, the first and the last included (fewer if ``n_steps`` is smaller)."""
+    idx = np.unique(np.rint(np.linspace(0, n_steps - 1, min(points, n_steps))))
+    return idx.astype(np.int64)
+
+
 class BatchSampler:
     """Draws ``(t [L], y [N, L, D])`` batches for iteration ``k`` of ``iterations``.
 
@@ -73,8 +80,7 @@ class BatchSampler:
         if spec.kind == "windows":
             self._tsub = min(spec.tsub, n_steps)
         else:
-            idx = np.unique(np.rint(np.linspace(0, n_steps - 1, min(spec.points, n_steps))))
-            idx_t = torch.as_tensor(idx.astype(np.int64))
+            idx_t = torch.as_tensor(subsample_index(n_steps, spec.points))
             self._sub_t = times[idx_t]
             self._sub_y = demos[:, idx_t]
 
