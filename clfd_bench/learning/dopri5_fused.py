@@ -25,7 +25,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from clfd_bench.learning.fused_mlp import MLPTape
+from clfd_bench.learning.fused_mlp import MLPTape, needs_grad
 
 __all__ = ["dopri5_mlp", "initial_step"]
 
@@ -233,8 +233,7 @@ def dopri5_mlp(
         raise ValueError(f"dopri5 needs times shared by the batch, [K]; got {tuple(times.shape)}")
     if times.shape[0] < 2:
         return y0.unsqueeze(1)
-    tensors = [y0, w0y, b0, *rest] + ([] if w0t is None else [w0t])
-    if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
+    if not needs_grad(y0, w0y, w0t, b0, *rest):
         with torch.no_grad():
             tape = MLPTape(w0y, w0t, b0, rest, act, record=False)
             return _forward(tape, y0, times.tolist(), rtol, atol)[0]

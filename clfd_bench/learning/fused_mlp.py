@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-__all__ = ["FUSED_ACTIVATIONS", "MLPTape"]
+__all__ = ["FUSED_ACTIVATIONS", "MLPTape", "needs_grad", "summed_weight_grads"]
 
 FUSED_ACTIVATIONS = ("elu", "tanh", "relu")
 
@@ -128,22 +128,46 @@ class MLPTape:
                 rest += [torch.zeros_like(w), torch.zeros_like(b)]
             w0t = None if self.w0t is None else torch.zeros_like(self.w0t)
             return zeros[0], w0t, zeros[1], rest
-        rest: list[Tensor] = []
-        for j in range(len(self.weights)):
-            g = torch.cat(self._grad_outs[j + 1], 0)  # [E*B, out]
-            a = torch.cat([self.acts[e][j + 1] for e in order], 0)  # [E*B, in]
-            rest += [g.t() @ a, g.sum(0)]
-        g0 = torch.stack(self._grad_outs[0], 0)  # [E, B, H]
-        u0 = torch.stack([self.acts[e][0] for e in order], 0)  # [E, B, D]
-        grad_w0y = g0.flatten(0, 1).t() @ u0.flatten(0, 1)
-        grad_b0 = g0.sum((0, 1))
-        grad_w0t = None
+        grads = [torch.stack(g, 0) for g in self._grad_outs]  # [E, B, width] per layer
+        acts = [torch.stack([self.acts[e][j] for e in order], 0)
+                for j in range(len(self.weights) + 1)]
+        times = None
         if self.w0t is not None:
             times = [self.times[e] for e in order]
-            if isinstance(times[0], float):
-                te = torch.tensor(times, dtype=g0.dtype)  # [E]
-                grad_w0t = te @ g0.sum(1)
-            else:
-                te = torch.stack(times, 0)  # [E, B, 1]
-                grad_w0t = (g0 * te).sum((0, 1))
-        return grad_w0y, grad_w0t, grad_b0, rest
+            if not isinstance(times[0], float):
+                times = torch.stack(times, 0)  # [E, B, 1]
+        return summed_weight_grads(grads, acts, times)
+
+
+def summed_weight_grads(grads: Sequence[Tensor], acts: Sequence[Tensor],
+                        times: list[float] | Tensor | None
+                        ) -> tuple[Tensor, Tensor | None, Tensor, list[Tensor]]:
+    """An MLP field's weight gradients summed over E evaluations of n states each, one
+    matrix product per layer: ``(dW0y, dw0t, db0, [dW1, db1, ...])``.
+
+    Args:
+        grads: per layer ``j``, ``[E, n, out_j]`` the gradients w.r.t. its pre-activations
+            (contiguous, so every caller sums in the same order).
+        acts: per layer ``j``, ``[E, n, in_j]`` its inputs (``acts[0]``: the states).
+        times: each evaluation's time: ``E`` floats, or ``[E, n, 1]`` per state; None
+            without a time input.
+    """
+    rest: list[Tensor] = []
+    for g, a in zip(grads[1:], acts[1:], strict=True):
+        g2 = g.reshape(-1, g.shape[-1])  # [E*n, out]
+        rest += [g2.t() @ a.reshape(-1, a.shape[-1]), g2.sum(0)]
+    g0, u0 = grads[0], acts[0]
+    grad_w0y = g0.flatten(0, 1).t() @ u0.flatten(0, 1)
+    grad_b0 = g0.sum((0, 1))
+    grad_w0t = None
+    if isinstance(times, list):
+        grad_w0t = torch.tensor(times, dtype=g0.dtype) @ g0.sum(1)
+    elif times is not None:
+        grad_w0t = (g0 * times).sum((0, 1))
+    return grad_w0y, grad_w0t, grad_b0, rest
+
+
+def needs_grad(*tensors: Tensor | None) -> bool:
+    """Whether a fused solver must record for a backward pass: gradients are enabled and one
+    of ``tensors`` (None skipped) requires them."""
+    return torch.is_grad_enabled() and any(t is not None and t.requires_grad for t in tensors)

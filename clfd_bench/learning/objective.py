@@ -20,6 +20,7 @@ from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS
 from clfd_bench.learning.node import VectorField
 from clfd_bench.learning.odeint import SolverSpec, integrate
 from clfd_bench.learning.part_config import PartConfig
+from clfd_bench.learning.rk4_fused import rk4_mlp
 from clfd_bench.learning.rk4_stacked import rk4_mlp_stacked
 
 __all__ = [
@@ -167,8 +168,6 @@ def _stacks_exactly(fields: Sequence[VectorField], y0: Tensor, t: Tensor, rows: 
     """Per run, whether the stacked pass gives it its own integration bit for bit: outputs
     and weight gradients of both on these inputs (with the fields' own tensor layouts)
     against a fixed output gradient."""
-    from clfd_bench.learning.rk4_fused import rk4_mlp
-
     leaves = [[None if w is None else w.detach().requires_grad_(True)
                for w in _field_tensors(f)] for f in fields]
     verdicts = []

@@ -13,14 +13,15 @@ shared by the batch (``[K]``) or per sample (``[B, K]``, multiple shooting).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 
 import torch
 from torch import Tensor
 
-from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, MLPTape
+from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, MLPTape, needs_grad
 
-__all__ = ["FUSED_ACTIVATIONS", "rk4_march", "rk4_march_reverse", "rk4_mlp", "sweep_forward",
-           "sweep_reverse"]
+__all__ = ["FUSED_ACTIVATIONS", "fused_rk4", "rk4_march", "rk4_march_reverse", "rk4_mlp",
+           "sweep_forward", "sweep_reverse"]
 
 
 def sweep_forward(tape, y0: Tensor, times: Tensor, substeps: int):
@@ -120,20 +121,36 @@ def rk4_march_reverse(vjp, step_h: list, substeps: int, grads: list[Tensor]) -> 
     return ybar
 
 
-class _RK4MLP(torch.autograd.Function):
+class _FusedRK4(torch.autograd.Function):
+    """RK4 through a tape, with the hand-written reverse sweep as its backward pass (the
+    lone and the stacked fields alike: :func:`fused_rk4`)."""
+
     @staticmethod
-    def forward(ctx, y0, times, substeps, act, w0y, w0t, b0, *rest):
-        tape = MLPTape(w0y, w0t, b0, rest, act, record=True)
+    def forward(ctx, sweeps, make_tape, y0, times, substeps, w0y, w0t, b0, *rest):
+        tape = make_tape(w0y, w0t, b0, rest, record=True)
         with torch.no_grad():
-            result, step_h = sweep_forward(tape, y0, times, substeps)
-        ctx.tape, ctx.step_h, ctx.substeps = tape, step_h, substeps
+            result, step_h = sweeps[0](tape, y0, times, substeps)
+        ctx.tape, ctx.step_h, ctx.substeps, ctx.reverse = tape, step_h, substeps, sweeps[1]
         return result
 
     @staticmethod
     def backward(ctx, grad_out):
-        ybar = sweep_reverse(ctx.tape, ctx.step_h, ctx.substeps, grad_out)
+        ybar = ctx.reverse(ctx.tape, ctx.step_h, ctx.substeps, grad_out)
         grad_w0y, grad_w0t, grad_b0, grads_rest = ctx.tape.weight_grads()
-        return (ybar, None, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
+        return (None, None, ybar, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
+
+
+def fused_rk4(sweeps, make_tape, y0: Tensor, times: Tensor, substeps: int, w0y: Tensor,
+              w0t: Tensor | None, b0: Tensor, rest: Sequence[Tensor]) -> Tensor:
+    """RK4 through the tape ``make_tape(w0y, w0t, b0, rest, record=...)`` builds, with
+    ``sweeps = (forward, reverse)`` its sweep pair (:func:`sweep_forward` /
+    :func:`sweep_reverse`, or the stacked ones); the forward sweep alone, recording nothing,
+    when no gradient is needed."""
+    if not needs_grad(y0, w0y, w0t, b0, *rest):
+        with torch.no_grad():
+            tape = make_tape(w0y, w0t, b0, rest, record=False)
+            return sweeps[0](tape, y0, times, substeps)[0]
+    return _FusedRK4.apply(sweeps, make_tape, y0, times, substeps, w0y, w0t, b0, *rest)
 
 
 def sweep_reverse(tape, step_h: list, substeps: int, grad_out: Tensor) -> Tensor:
@@ -174,10 +191,5 @@ def rk4_mlp(
         return y0.unsqueeze(1)
     if times.dim() == 2 and times.shape[0] != y0.shape[0]:
         raise ValueError(f"per-sample times [B, K] need B = {y0.shape[0]}, got {times.shape}")
-    times = times.to(y0.dtype)
-    tensors = [y0, w0y, b0, *rest] + ([] if w0t is None else [w0t])
-    if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
-        with torch.no_grad():
-            tape = MLPTape(w0y, w0t, b0, rest, act, record=False)
-            return sweep_forward(tape, y0, times, int(substeps))[0]
-    return _RK4MLP.apply(y0, times, int(substeps), act, w0y, w0t, b0, *rest)
+    return fused_rk4((sweep_forward, sweep_reverse), partial(MLPTape, act=act), y0,
+                     times.to(y0.dtype), int(substeps), w0y, w0t, b0, rest)

@@ -15,18 +15,21 @@ The backward pass is hand-written as in ``rk4_fused``: one reverse sweep, then e
 weight gradients summed over its own states exactly as ``MLPTape.weight_grads`` sums them
 (one matrix product per layer and field). So the only place where a row can differ from
 ``rk4_mlp`` is inside a batched product (``bmm`` against ``mm``): on CPU with BLAS the
-slices are usually bit-identical, and :func:`stacks_exactly` checks it for given shapes.
+slices are usually bit-identical, and
+:func:`~clfd_bench.learning.objective.stacked_trajectory_losses` checks it per shape before
+it uses this pass.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 
 import torch
 from torch import Tensor
 
-from clfd_bench.learning.fused_mlp import _ACT, FUSED_ACTIVATIONS, MLPTape
-from clfd_bench.learning.rk4_fused import rk4_march, rk4_march_reverse
+from clfd_bench.learning.fused_mlp import _ACT, FUSED_ACTIVATIONS, MLPTape, summed_weight_grads
+from clfd_bench.learning.rk4_fused import fused_rk4, rk4_march, rk4_march_reverse
 
 __all__ = [
     "FUSED_ACTIVATIONS",
@@ -121,8 +124,9 @@ class StackedMLPTape(MLPTape):
 
     def weight_grads(self) -> tuple[Tensor, Tensor | None, Tensor, list[Tensor]]:
         """``(dW0y, dw0t, db0, [dW1, db1, ...])`` (each ``[R, ...]``) summed over every
-        :meth:`vjp` call: per field over its own ``rows`` states, with the products and sums
-        of ``MLPTape.weight_grads`` (so each field's gradients are those of ``rk4_mlp``)."""
+        :meth:`vjp` call: per field over its own ``rows`` states, by
+        :func:`~clfd_bench.learning.fused_mlp.summed_weight_grads` as ``MLPTape`` sums a
+        lone field's (so each field's gradients are those of ``rk4_mlp``)."""
         order = self._order
         if not order:
             rest: list[Tensor] = []
@@ -136,44 +140,29 @@ class StackedMLPTape(MLPTape):
         grads = [torch.stack(g, 1) for g in self._grad_outs]
         acts = [torch.stack([self.acts[e][j] for e in order], 1)
                 for j in range(len(self.weights) + 1)]
-        times = [self.times[e] for e in order]
-        if not isinstance(times[0], float) and self.w0t is not None:
-            times = torch.stack(times, 1)  # [R, E, B, 1]
-        per_field = [self._field_grads(grads, acts, times, r, rows[r])
-                     for r in range(n_fields)]
-        stacked = [torch.stack(g) if g[0] is not None else None
-                   for g in zip(*per_field, strict=True)]
-        grad_w0y, grad_w0t, grad_b0, *rest = stacked
-        return grad_w0y, grad_w0t, grad_b0, rest
-
-    def _field_grads(self, grads: list[Tensor], acts: list[Tensor], times, r: int, n: int
-                     ) -> list[Tensor | None]:
-        """Field ``r``'s weight gradients over its first ``n`` states, computed as
-        ``MLPTape.weight_grads`` computes them for those states alone (the same products of
-        the same contiguous ``[E * n, width]`` matrices): ``[dW0y, dw0t, db0, dW1, db1, ...]``."""
-        rest: list[Tensor] = []
-        for j in range(len(self.weights)):
-            g = grads[j + 1][r, :, :n].reshape(-1, grads[j + 1].shape[-1])  # [E*n, out]
-            a = acts[j + 1][r, :, :n].reshape(-1, acts[j + 1].shape[-1])  # [E*n, in]
-            rest += [g.t() @ a, g.sum(0)]
-        g0 = grads[0][r, :, :n].contiguous()  # [E, n, H]; contiguous: sums in its order
-        u0 = acts[0][r, :, :n].contiguous()  # [E, n, D]
-        grad_w0y = g0.reshape(-1, g0.shape[-1]).t() @ u0.reshape(-1, u0.shape[-1])
-        grad_b0 = g0.sum((0, 1))
-        grad_w0t = None
+        times = None
         if self.w0t is not None:
-            if isinstance(times, list):  # shared float times
-                grad_w0t = torch.tensor(times, dtype=g0.dtype) @ g0.sum(1)
-            else:
-                grad_w0t = (g0 * times[r, :, :n].contiguous()).sum((0, 1))
-        return [grad_w0y, grad_w0t, grad_b0, *rest]
+            times = [self.times[e] for e in order]
+            if not isinstance(times[0], float):
+                times = torch.stack(times, 1)  # [R, E, B, 1]
+
+        def own(x: Tensor, r: int) -> Tensor:  # field r's [E, n, width], contiguous
+            return x[r, :, : rows[r]].contiguous()
+
+        per_field = [summed_weight_grads([own(g, r) for g in grads], [own(a, r) for a in acts],
+                                         times if not isinstance(times, Tensor)
+                                         else own(times, r))
+                     for r in range(n_fields)]
+        grad_w0y, grad_w0t, grad_b0, rest = zip(*per_field, strict=True)
+        return (torch.stack(grad_w0y), None if grad_w0t[0] is None else torch.stack(grad_w0t),
+                torch.stack(grad_b0), [torch.stack(g) for g in zip(*rest, strict=True)])
 
 
 def _stage_schedule(times: Tensor, substeps: int):
     """Step sizes per RK4 step and the stage times (t, t + h/2, t + h) of every step, computed
     as in ``rk4_fused.sweep_forward``: for shared times ``[K]`` Python floats and a stage-time
     tensor ``[n_steps * 3, 1, 1, 1]``; for per-sample times ``[R, B, K]`` tensors ``[R, B, 1]``
-    and ``[n_steps * 3, R, B, 1]``. Returns ``(step_h, stage_times, stage_t, n_steps)``."""
+    and ``[n_steps * 3, R, B, 1]``. Returns ``(step_h, stage_times, stage_t)``."""
     per_sample = times.dim() == 3
     n_out = times.shape[-1]
     tk = times if per_sample else times.reshape(1, 1, -1)  # [R|1, B|1, K]
@@ -192,7 +181,7 @@ def _stage_schedule(times: Tensor, substeps: int):
         step_h = hs[0, 0].tolist()  # Python floats
         stage_times = stage_t[0, 0].reshape(-1).tolist()
     stage_t = stage_t.permute(2, 3, 0, 1).reshape(n_steps * 3, r, b, 1)
-    return step_h, stage_times, stage_t, n_steps
+    return step_h, stage_times, stage_t
 
 
 def stacked_sweep_forward(tape: StackedMLPTape, y0: Tensor, times: Tensor, substeps: int):
@@ -200,7 +189,7 @@ def stacked_sweep_forward(tape: StackedMLPTape, y0: Tensor, times: Tensor, subst
     sizes)``: the steps of :func:`~clfd_bench.learning.rk4_fused.rk4_march`, as
     ``sweep_forward`` takes them (per sample: tensor steps; shared: Python-float steps)."""
     n_out = times.shape[-1]
-    step_h, stage_times, stage_t, n_steps = _stage_schedule(times, substeps)
+    step_h, stage_times, stage_t = _stage_schedule(times, substeps)
     if tape.w0t is None:
         rows = None
     else:  # first-layer bias of every stage in one operation: [n_steps * 3, R, B|1, H]
@@ -219,22 +208,6 @@ def stacked_sweep_reverse(tape: StackedMLPTape, step_h: list, substeps: int,
     (:func:`~clfd_bench.learning.rk4_fused.rk4_march_reverse`, as ``sweep_reverse``)."""
     tape.start_reverse()
     return rk4_march_reverse(tape.vjp, step_h, substeps, list(grad_out.unbind(2)))
-
-
-class _RK4MLPStacked(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, y0, times, substeps, act, rows, w0y, w0t, b0, *rest):
-        tape = StackedMLPTape(w0y, w0t, b0, rest, act, record=True, rows=rows)
-        with torch.no_grad():
-            result, step_h = stacked_sweep_forward(tape, y0, times, substeps)
-        ctx.tape, ctx.step_h, ctx.substeps = tape, step_h, substeps
-        return result
-
-    @staticmethod
-    def backward(ctx, grad_out):
-        ybar = stacked_sweep_reverse(ctx.tape, ctx.step_h, ctx.substeps, grad_out)
-        grad_w0y, grad_w0t, grad_b0, grads_rest = ctx.tape.weight_grads()
-        return (ybar, None, None, None, None, grad_w0y, grad_w0t, grad_b0, *grads_rest)
 
 
 def _shape(t: Tensor) -> tuple[int, ...]:
@@ -305,8 +278,9 @@ def rk4_mlp_stacked(
     Returns:
         ``[R, B, K, D]``; row ``r`` equals ``rk4_mlp(y0[r], times[r], w0y[r], w0t[r], b0[r],
         [w[r] for w in rest], act, substeps)`` (``times`` for shared times) up to the
-        summation order inside batched products (bit for bit where :func:`stacks_exactly`
-        holds). Differentiable w.r.t. ``y0`` and all weights (hand-written backward pass).
+        summation order inside batched products (bit for bit where
+        :func:`~clfd_bench.learning.objective.stacked_trajectory_losses`' check holds).
+        Differentiable w.r.t. ``y0`` and all weights (hand-written backward pass).
     """
     if act not in FUSED_ACTIVATIONS:
         raise ValueError(f"fused RK4 supports activations {FUSED_ACTIVATIONS}, not {act!r}")
@@ -320,12 +294,7 @@ def rk4_mlp_stacked(
                          f"R = {y0.shape[0]} fields, got {list(rows)}")
     if times.shape[-1] < 2:
         return y0.unsqueeze(2)
-    times = times.to(y0.dtype)
-    substeps = int(substeps)
     rows = None if rows is None else tuple(int(n) for n in rows)
-    tensors = [y0, w0y, b0, *rest] + ([] if w0t is None else [w0t])
-    if not (torch.is_grad_enabled() and any(t.requires_grad for t in tensors)):
-        with torch.no_grad():
-            tape = StackedMLPTape(w0y, w0t, b0, rest, act, record=False)
-            return stacked_sweep_forward(tape, y0, times, substeps)[0]
-    return _RK4MLPStacked.apply(y0, times, substeps, act, rows, w0y, w0t, b0, *rest)
+    return fused_rk4((stacked_sweep_forward, stacked_sweep_reverse),
+                     partial(StackedMLPTape, act=act, rows=rows), y0, times.to(y0.dtype),
+                     int(substeps), w0y, w0t, b0, rest)

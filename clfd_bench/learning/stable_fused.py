@@ -18,7 +18,7 @@ import torch
 from torch import Tensor
 
 from clfd_bench.learning import rk4_fused
-from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS
+from clfd_bench.learning.fused_mlp import FUSED_ACTIVATIONS, needs_grad
 from clfd_bench.learning.stable import StableField
 from clfd_bench.learning.stable_tape import StableTape
 
@@ -141,8 +141,7 @@ def integrate_stable(field: StableField, y0: Tensor, times: Tensor, method: str,
     settings = (spec.activation, spec.dim, spec.clock, spec.alpha, spec.eps, spec.rehu_d,
                 spec.tangent)
     layout = (n_rest, n_layers)
-    if not (torch.is_grad_enabled()
-            and any(t is not None and t.requires_grad for t in (y0, *tensors))):
+    if not needs_grad(y0, *tensors):
         with torch.no_grad():
             tape = _tape(settings, layout, tensors, record=False)
             return _sweep(tape, method, y0, times, int(substeps))[0]
