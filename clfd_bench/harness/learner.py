@@ -25,10 +25,8 @@ from clfd_bench.data.types import Task
 from clfd_bench.harness.config import PartConfig
 from clfd_bench.harness.loop import (
     TrainingDivergedError,
-    TrainStats,
     solver_blew_up,
     solver_spec,
-    train_task,
 )
 from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.learning.batches import subsample_index
@@ -174,13 +172,13 @@ class PartLearner:
         self.goals.append(None if self.kind == "position" else np.asarray(task.goal[3:]))
         return data
 
-    def learn(self, index: int, task: Task, generator: torch.Generator, desc: str) -> TrainStats:
-        """Add task ``index`` to the model and train it (the global RNG is seeded by the caller)."""
+    def add_next(self, index: int, task: Task) -> TaskData:
+        """:meth:`add_task` for task ``index``, which must be the next one (tasks are learned
+        in order); the global RNG is seeded by the caller."""
         if index != self.method.num_tasks:
             raise ValueError(f"tasks are learned in order: expected task {self.method.num_tasks}, "
                              f"got {index}")
-        data = self.add_task(task)
-        return train_task(self.method, index, data, self.cfg, generator, desc=desc)
+        return self.add_task(task)
 
     # -- prediction -------------------------------------------------------------------
     @torch.no_grad()
@@ -225,8 +223,8 @@ class PartLearner:
             ) from exc
         return self.data_states(index, out.double().numpy(), goals)
 
-    def solver_gap(self, index: int, task: Task, goals: np.ndarray | None = None
-                   ) -> float | None:
+    def solver_gap(self, index: int, task: Task, goals: np.ndarray | None = None,
+                   fine: np.ndarray | None = None) -> float | None:
         """How far task ``index``'s model, integrated as training integrates it, is from the
         same model integrated as predictions are: the largest distance over the demos' starts
         and the training samples (positions: data units; orientation: degrees). A fixed-step
@@ -238,6 +236,8 @@ class PartLearner:
 
         Args:
             goals: orientation only, as for :meth:`predict`.
+            fine: this part's prediction of the task from its demos' starts over
+                ``task.times`` (:meth:`predict`), if already made; else it is made here.
         """
         cfg = self.cfg
         if cfg.solver not in FIXED_SOLVERS or cfg.batch != "trajectories":
@@ -247,7 +247,9 @@ class PartLearner:
         raw = task.positions if self.kind == "position" else task.quaternions
         starts = np.asarray(raw)[:, 0]
         coarse = self.predict(index, starts, times[idx], goals, solver=solver_spec(self.cfg))
-        fine = self.predict(index, starts, times, goals)[:, idx]
+        if fine is None:
+            fine = self.predict(index, starts, times, goals)
+        fine = np.asarray(fine)[:, idx]
         if self.kind == "position":
             return float(np.linalg.norm(coarse - fine, axis=-1).max())
         dot = np.clip(np.abs((coarse * fine).sum(-1)), 0.0, 1.0)
@@ -352,11 +354,18 @@ class Learner:
         quat = self.parts["orientation"].predict(index, starts[:, 3:], times, goals)
         return np.concatenate([pos, quat], axis=-1)
 
-    def solver_gaps(self, index: int, task: Task) -> dict[str, float | None]:
+    def solver_gaps(self, index: int, task: Task, prediction: np.ndarray | None = None
+                    ) -> dict[str, float | None]:
         """:meth:`PartLearner.solver_gap` of every part for ``task``'s demos (the goals the
-        protocol passes)."""
+        protocol passes); ``prediction``: :meth:`predict`'s ``[N, T, D]`` for them, if
+        already made (each part's share of it is reused)."""
         goals = self.demo_goals(task)
-        return {kind: part.solver_gap(index, task, goals if kind == "orientation" else None)
+        shares = {kind: None for kind in self.parts}
+        if prediction is not None:
+            shares = ({"position": prediction[..., :3], "orientation": prediction[..., 3:]}
+                      if self.is_pose else {"position": prediction})
+        return {kind: part.solver_gap(index, task, goals if kind == "orientation" else None,
+                                      shares[kind])
                 for kind, part in self.parts.items()}
 
     def demo_goals(self, task: Task) -> np.ndarray | None:

@@ -97,6 +97,7 @@ def _provenance(config: RunConfig, ds: Dataset, threads: int) -> dict[str, Any]:
         "torch_threads": threads,
         "cpu": cpu_provenance(),
         "cpu_by_task": [],
+        "lockstep_by_task": [],
     }
 
 
@@ -298,10 +299,7 @@ class _ProtocolRun:
         part = self.learner.parts[kind]
         torch.manual_seed(seed_i)
         generator = torch.Generator().manual_seed(seed_i + 1)
-        if i != part.method.num_tasks:
-            raise ValueError(f"tasks are learned in order: expected task "
-                             f"{part.method.num_tasks}, got {i}")
-        data = part.add_task(task)
+        data = part.add_next(i, task)
         return TaskRun(part.method, i, data, part.cfg, generator,
                        f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state())
 
@@ -331,7 +329,7 @@ class _ProtocolRun:
         state, learner, tasks, n_tasks = self.state, self.learner, self.tasks, self.n_tasks
         task = tasks[i]
         self.provenance["cpu_by_task"].append(self.provenance["cpu"])
-        self.provenance.setdefault("lockstep_by_task", []).append(lockstep)
+        self.provenance["lockstep_by_task"].append(lockstep)
         state["train_time_s"].append(sum(self._times.values()))
         self._times = {}
         state["train_cpu_s"].append(cpu_s)
@@ -348,7 +346,7 @@ class _ProtocolRun:
             preds.append(pred)
             for metric, values in task_errors(tj, pred).items():
                 state["errors"][metric][i][j] = values
-        for kind, gap in learner.solver_gaps(i, task).items():
+        for kind, gap in learner.solver_gaps(i, task, preds[i]).items():
             state["solver_gap_by_part"][kind].append(gap)
         self.run.save_predictions(i, preds)
         headers, tensors = _checkpoint_payload(learner)
