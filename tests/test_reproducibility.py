@@ -36,27 +36,23 @@ def env() -> dict[str, str]:
     return env
 
 
-def _intel() -> bool:
-    cpuinfo = Path("/proc/cpuinfo")
-    return cpuinfo.is_file() and "GenuineIntel" in cpuinfo.read_text()
-
-
 def test_same_command_and_other_thread_count_give_identical_predictions(tmp_path, env):
     runs = [_train(tmp_path / f"run{i}", threads, env) for i, threads in enumerate((1, 1, 2))]
     assert sorted(runs[0]) == sorted(runs[1]) == sorted(runs[2])
+    cpu = json.loads((tmp_path / "run0" / "results.json").read_text())["provenance"]["cpu"]
+    intel = "Intel" in cpu["model"]  # the CPU the run recorded (harness.evaluation.cpu_provenance)
     for part in runs[0]:
         assert np.array_equal(runs[0][part], runs[1][part]), f"{part}: twice differ"
-        if _intel():
+        if intel:
             assert np.array_equal(runs[0][part], runs[2][part]), f"{part}: --threads 2 differs"
         else:
             # Measured on an AMD EPYC (2026-12-06): --threads 2 differs from 1 by 6e-7 to
             # 1.6e-6 with MKL_CBWR AUTO,STRICT, COMPATIBLE or AVX2,STRICT alike, so the
-            # thread-invariant mode does not reach it there (docs/usage.md, reproducibility).
+            # thread-invariant mode does not reach it there (docs/learning.md, reproducibility).
             # Bit-identity across thread counts is asserted on Intel only; elsewhere the
             # difference must stay at rounding level.
             np.testing.assert_allclose(runs[2][part], runs[0][part], rtol=0, atol=1e-4,
                                        err_msg=f"{part}: --threads 2 differs beyond rounding")
-    cpu = json.loads((tmp_path / "run0" / "results.json").read_text())["provenance"]["cpu"]
     assert cpu["blas"]["mkl_cbwr"] == MKL_CBWR_DEFAULT
     assert cpu["kernel_env"]["MKL_CBWR"] == MKL_CBWR_DEFAULT
     assert cpu["blas"]["torch_blas"] and cpu["torch_capability"]
