@@ -12,6 +12,14 @@ float-rounding variants of one matrix product ends with predictions up to 2 cm a
   when the package is imported, unless the user set ``MKL_CBWR`` already. MKL reads it at its
   first call, so it holds when ``clfd_bench`` is imported before any torch computation (the
   CLI always is); a process that multiplied tensors first keeps the mode it started with.
+  MKL honours the strict mode only on its AVX2 and AVX-512 code paths, which it takes on Intel
+  CPUs: on an AMD EPYC (2026-12-07) ``AUTO,STRICT`` gave the same products as ``OFF``, and a
+  7x64 by 64x16 ``sgemm`` (small ``m`` and ``n``; ``k`` apparently split between threads)
+  differed by 4e-6 between 1 and 2 threads; it was the only operation of a CHN smoke run
+  whose result depended on the thread count (every operation's inputs and outputs hashed at
+  1 and 2 threads). :func:`gemm_thread_probe` measures whether this machine's products depend on the
+  thread count and the provenance records it, so a reader knows whether ``--threads`` could
+  have moved a result.
 - **CPUs.** Across CPUs the kernels differ by instruction set (PyTorch's vector kernels and
   MKL's dispatch: AVX2, AVX-512), so results are reproducible on one machine, not across
   machines: :func:`blas_provenance` records the CPU capability and the BLAS libraries beside
@@ -20,11 +28,13 @@ float-rounding variants of one matrix product ends with predictions up to 2 cm a
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from typing import Any
 
-__all__ = ["MKL_CBWR_DEFAULT", "blas_provenance", "pin_thread_invariant_kernels"]
+__all__ = ["MKL_CBWR_DEFAULT", "blas_provenance", "gemm_thread_probe",
+           "pin_thread_invariant_kernels"]
 
 #: MKL's reproducibility mode clfd-bench runs with: the CPU's best code path, results
 #: independent of the number of threads.
@@ -36,13 +46,55 @@ def pin_thread_invariant_kernels() -> str:
     return os.environ.setdefault("MKL_CBWR", MKL_CBWR_DEFAULT)
 
 
+#: ``(m, k, n, bias)`` of the products :func:`gemm_thread_probe` computes: MKL's small-``m``,
+#: small-``n`` path that splits ``k`` between threads (the one measured to differ on an AMD
+#: EPYC), a bias-added product, and square and tall ones as the NODEs' layers have.
+GEMM_PROBE_SHAPES: tuple[tuple[int, int, int, bool], ...] = (
+    (7, 64, 16, False), (7, 1000, 16, False), (27, 16, 16, True), (100, 100, 100, True),
+    (300, 64, 64, True))
+
+
+@functools.lru_cache(maxsize=1)
+def gemm_thread_probe() -> dict[str, Any]:
+    """Whether this process's matrix products depend on the number of threads.
+
+    Computes each product of :data:`GEMM_PROBE_SHAPES` (float32, fixed random inputs) with 1
+    and with 2 torch threads and compares them bit for bit; the thread count is restored after.
+    Measured once per process (MKL's mode is fixed at its first call), in tens of milliseconds.
+
+    Returns ``{"threads": [1, 2], "identical": bool, "max_abs_diff": float}``. ``identical``
+    true means every probed product was bit-identical across thread counts (as MKL's strict
+    mode promises on Intel CPUs); false means ``--threads`` can move a result at rounding
+    level on this machine. It probes these shapes only: it cannot prove every product
+    invariant, but a false is a measured counterexample.
+    """
+    import torch
+
+    previous = torch.get_num_threads()
+    gen = torch.Generator().manual_seed(0)
+    worst = 0.0
+    try:
+        for m, k, n, bias in GEMM_PROBE_SHAPES:
+            a, b = torch.randn(m, k, generator=gen), torch.randn(k, n, generator=gen)
+            c = torch.randn(n, generator=gen)
+            out = []
+            for threads in (1, 2):
+                torch.set_num_threads(threads)
+                out.append(torch.addmm(c, a, b) if bias else a @ b)
+            worst = max(worst, float((out[0] - out[1]).abs().max()))
+    finally:
+        torch.set_num_threads(previous)
+    return {"threads": [1, 2], "identical": worst == 0.0, "max_abs_diff": worst}
+
+
 def blas_provenance() -> dict[str, Any]:
     """The linear-algebra libraries of this process (imports torch and numpy).
 
     Returns ``{"torch_blas", "torch_lapack", "torch_mkl", "torch_cpu_capability",
-    "numpy_blas", "mkl_cbwr"}``: PyTorch's build-time BLAS and LAPACK (``BLAS_INFO``,
-    ``LAPACK_INFO``), its MKL version line, the CPU capability it dispatches to, numpy's BLAS
-    (name and version) and the ``MKL_CBWR`` mode in the environment (None when unset).
+    "numpy_blas", "mkl_cbwr", "gemm_thread_probe"}``: PyTorch's build-time BLAS and LAPACK
+    (``BLAS_INFO``, ``LAPACK_INFO``), its MKL version line, the CPU capability it dispatches
+    to, numpy's BLAS (name and version), the ``MKL_CBWR`` mode in the environment (None when
+    unset) and whether products depend on the thread count here (:func:`gemm_thread_probe`).
     Entries that cannot be read are ``"unknown"``.
     """
     import numpy as np
@@ -66,4 +118,5 @@ def blas_provenance() -> dict[str, Any]:
         "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
         "numpy_blas": numpy_blas,
         "mkl_cbwr": os.environ.get("MKL_CBWR"),
+        "gemm_thread_probe": gemm_thread_probe(),
     }
