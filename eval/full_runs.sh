@@ -52,6 +52,14 @@ main() {
   keep_dir="${CLFD_FULL_KEEP:-$repo/docs/studies/full-runs}"
   export PYTHONPATH="$repo${PYTHONPATH:+:$PYTHONPATH}"
   export CLFD_NO_PROGRESS=1 MUJOCO_GL="${MUJOCO_GL:-egl}"
+  # `nice` alone does not yield to the rest of the machine when this script leads its own
+  # session (setsid, as above) on a kernel with autogroup scheduling: each session is its own
+  # group, groups share the CPUs equally whatever their processes' nice, and on 2 cores these
+  # runs took 2/3 of the CPU from a test suite (2026-12-07). So the session's group is niced
+  # too, only when this script leads it (never the caller's terminal session).
+  if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ] && [ -w /proc/self/autogroup ]; then
+    echo 10 > /proc/self/autogroup 2>/dev/null || true
+  fi
 
   mkdir -p "$out"
   exec 9>"$out/.full_runs.lock"
