@@ -13,7 +13,21 @@ is continue training or be rendered from its model: videos execute the predictio
 still work.
 
     python eval/full_keep.py save results/full docs/studies/full-runs
+    python eval/full_keep.py save --partial results/full docs/studies/full-runs   # session end
     python eval/full_keep.py restore docs/studies/full-runs results/full
+
+**Half-finished runs (``--partial``).** A run of several hours does not fit one session's
+machine (CHN HelloWorld on an AMD EPYC: about 1 000 s of CPU a letter, 2 h for seven). With
+``--partial``, ``save`` also keeps every unfinished run that has learned at least one task,
+**with** its checkpoint (the last finished task's: the run resumes after it, as a killed run
+does), so the next machine continues it instead of starting again; the manifest marks it
+``"partial": true``. Only checkpoints up to ``--max-mb`` (default 20) are kept, because each
+one stays in the repository's history: CHN's HelloWorld checkpoint is 7.6 MB, a RoboTasks SG
+run's four networks about 100 MB (refused, said in one line). Stop the run first (kill it: a
+killed run keeps its last finished task); a checkpoint written while it is archived would not
+match its results. ``restore`` extracts a partial run with its checkpoint and does not execute
+it again: the grid resumes it, trains what is left and executes it. Once it is done, ``save``
+archives it again without its checkpoint, in place of the partial archive.
 
 ``save`` archives every run under OUT (``OUT/<dataset>/runs/<dataset>/<method>/<run>``, as
 ``eval/full_runs.sh`` lays them out) that is done (every task trained and executed by the
@@ -49,34 +63,62 @@ def _manifest(keep: Path) -> dict:
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
-def save(out: Path, keep: Path) -> int:
+def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> int:
     """Archives the finished runs of ``out`` not kept yet, and those kept from an earlier
     simulator that this one has executed again (restored and refreshed: archived again, so
-    the next restore needs no execution); returns how many it archived."""
+    the next restore needs no execution); with ``partial``, also the unfinished runs that
+    learned a task since they were last kept, with their checkpoint when it is at most
+    ``max_mb`` MB (module docstring). Returns how many it archived."""
     manifest, fingerprint, saved = _manifest(keep), sim_fingerprint(), 0
     for run in find_runs(out):
         key = run.path.relative_to(out).as_posix()
-        if key in manifest and manifest[key].get("simulator") == fingerprint:
+        entry = manifest.get(key)
+        was_partial = bool(entry and entry.get("partial"))
+        if entry and not was_partial and entry.get("simulator") == fingerprint:
             continue
         results, tasks, state = _state(run, fingerprint)
-        if key in manifest and (state.state != "done" or tasks != manifest[key]["tasks"]):
+        if entry and not was_partial and (state.state != "done" or tasks != entry["tasks"]):
             continue  # kept; not (yet) executed by this simulator
-        if state.state != "done" or tasks == 0:
+        if state.state == "done" and tasks > 0:
+            _archive(run, keep, key, left_out=LEFT_OUT)
+            manifest[key] = _entry(keep, key, results, tasks)
+        elif partial and state.state == "partial" and tasks > 0:
+            if was_partial and tasks <= entry["tasks"]:
+                continue  # kept at this task already
+            ckpt = run.checkpoint_path
+            mb = ckpt.stat().st_size / 1e6 if ckpt.is_file() else 0.0
+            if mb == 0 or mb > max_mb:
+                why = ("no checkpoint" if mb == 0
+                       else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
+                print(f"  {key}: not kept ({state.reason}; {why})")
+                continue
+            _archive(run, keep, key, left_out=("checkpoints",))  # checkpoint.pt goes in
+            manifest[key] = _entry(keep, key, results, tasks) | {"partial": True}
+        else:
             print(f"  {key}: not kept ({state.reason or state.state})")
             continue
-        archive = keep / f"{key}.tar.xz"
-        archive.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
-            staging = Path(tmp) / run.path.name
-            shutil.copytree(run.path, staging, ignore=shutil.ignore_patterns(*LEFT_OUT))
-            sha = make_archive(staging, archive)
-        manifest[key] = {"sha256": sha, "size": archive.stat().st_size,
-                         "tasks": tasks, "train_cpu_s": results.get("train_cpu_s"),
-                         "simulator": (results.get("sim") or {}).get("fingerprint")}
         atomic_write_json(keep / MANIFEST, dict(sorted(manifest.items())))
         saved += 1
-        print(f"  {key}: kept ({archive.stat().st_size / 1e6:.2f} MB, simulator {fingerprint})")
+        what = "partial, with its checkpoint, " if manifest[key].get("partial") else ""
+        print(f"  {key}: kept ({what}{tasks} tasks, "
+              f"{manifest[key]['size'] / 1e6:.2f} MB, simulator {fingerprint})")
     return saved
+
+
+def _archive(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]) -> None:
+    archive = keep / f"{key}.tar.xz"
+    archive.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
+        staging = Path(tmp) / run.path.name
+        shutil.copytree(run.path, staging, ignore=shutil.ignore_patterns(*left_out))
+        make_archive(staging, archive)
+
+
+def _entry(keep: Path, key: str, results: dict, tasks: int) -> dict:
+    archive = keep / f"{key}.tar.xz"
+    return {"sha256": sha256_file(archive), "size": archive.stat().st_size, "tasks": tasks,
+            "train_cpu_s": results.get("train_cpu_s"),
+            "simulator": (results.get("sim") or {}).get("fingerprint")}
 
 
 def restore(keep: Path, out: Path, refresh=None) -> int:
@@ -90,8 +132,10 @@ def restore(keep: Path, out: Path, refresh=None) -> int:
     restored = 0
     for key, entry in _manifest(keep).items():
         target = out / key
+        partial = bool(entry.get("partial"))
         if target.exists():
-            _refresh_if_stale(RunDir(target), key, refresh)
+            if not partial:
+                _refresh_if_stale(RunDir(target), key, refresh)
             continue
         archive = keep / f"{key}.tar.xz"
         if not archive.is_file() or sha256_file(archive) != entry["sha256"]:
@@ -104,6 +148,9 @@ def restore(keep: Path, out: Path, refresh=None) -> int:
                         methods=(), made_with_version="", size=int(entry["size"]))
         extract_archive(archive, target, bundle)
         restored += 1
+        if partial:  # the grid resumes it after its last kept task, and executes it
+            print(f"  {key}: restored, unfinished ({entry['tasks']} tasks, with its checkpoint)")
+            continue
         print(f"  {key}: restored")
         _refresh_if_stale(RunDir(target), key, refresh)
     return restored
@@ -129,6 +176,10 @@ def main() -> int:
     s = sub.add_parser("save", help="archive OUT's finished runs into KEEP")
     s.add_argument("out", type=Path)
     s.add_argument("keep", type=Path)
+    s.add_argument("--partial", action="store_true",
+                   help="also keep unfinished runs with their checkpoint (stop them first)")
+    s.add_argument("--max-mb", type=float, default=20.0,
+                   help="largest checkpoint --partial keeps, in MB (default 20)")
     r = sub.add_parser("restore", help="extract KEEP's runs missing under OUT")
     r.add_argument("keep", type=Path)
     r.add_argument("out", type=Path)
@@ -139,7 +190,8 @@ def main() -> int:
                 raise PretrainedError(f"{args.out}: no such folder (the OUT of "
                                       "eval/full_runs.sh)")
             args.keep.mkdir(parents=True, exist_ok=True)
-            print(f"full_keep: {save(args.out, args.keep)} run(s) archived into {args.keep}")
+            n = save(args.out, args.keep, partial=args.partial, max_mb=args.max_mb)
+            print(f"full_keep: {n} run(s) archived into {args.keep}")
         else:
             print(f"full_keep: {restore(args.keep, args.out)} run(s) restored into {args.out}")
     except PretrainedError as exc:

@@ -22,6 +22,9 @@
 # executed again), and after every stage the finished ones not kept yet, and the kept ones
 # executed again, are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
 # "none" keeps nothing). Commit what it adds there.
+# A run still training when the machine must go: kill this script and its runs, then
+# `python eval/full_keep.py save --partial OUT KEEP` keeps it with its checkpoint (up to
+# 20 MB), and the next machine's restore lets the grid resume it after its last task.
 set -uo pipefail
 # Everything runs inside main, called on the last line: bash parses the whole file before the
 # first run starts, so editing this file while it runs cannot change what it does.

@@ -148,3 +148,43 @@ def test_every_kept_run_of_the_repository_is_in_it():
         archive = keep / f"{key}.tar.xz"
         assert archive.is_file(), f"{archive} is named in MANIFEST.json but not in the checkout"
         assert hashlib.sha256(archive.read_bytes()).hexdigest() == entry["sha256"], key
+
+
+def test_an_unfinished_run_is_kept_with_its_checkpoint_until_it_finishes(out, keep_mod,
+                                                                         tmp_path):
+    """--partial: SG's unfinished run comes back with its checkpoint, byte for byte (what its
+    resume reads), is not executed on restore (the grid resumes it), is not archived twice at
+    the same task, and once finished is archived again without the checkpoint."""
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    assert keep_mod.save(out, keep, partial=True) == 2  # HN's finished run, SG's unfinished
+    manifest = json.loads((keep / "MANIFEST.json").read_text())
+    (sg_key,) = [k for k in manifest if "/sg/" in k]
+    assert manifest[sg_key]["partial"] is True and manifest[sg_key]["tasks"] == 7
+    assert "partial" not in next(v for k, v in manifest.items() if k != sg_key)
+    assert keep_mod.save(out, keep, partial=True) == 0  # nothing learned since
+
+    fresh = tmp_path / "fresh"
+    assert keep_mod.restore(keep, fresh, refresh=_no_refresh) == 2
+    assert _files(fresh / sg_key) == _files(out / sg_key)  # checkpoint.pt included
+    run = RunDir(fresh / sg_key)
+    assert run.status(7, sim=True, fingerprint=keep_mod.sim_fingerprint()).state == "partial"
+    keep_mod.restore(keep, fresh, refresh=_no_refresh)  # present: left alone, not executed
+
+    results = json.loads(run.results_path.read_text())  # the resumed run finishes
+    results["complete"] = True
+    run.results_path.write_text(json.dumps(results))
+    assert keep_mod.save(fresh, keep) == 1
+    done = json.loads((keep / "MANIFEST.json").read_text())[sg_key]
+    assert "partial" not in done
+    third = tmp_path / "third"
+    keep_mod.restore(keep, third, refresh=_no_refresh)
+    assert "checkpoint.pt" not in _files(third / sg_key)
+
+
+def test_a_checkpoint_over_the_cap_is_not_kept(out, keep_mod, tmp_path, capsys):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    assert keep_mod.save(out, keep, partial=True, max_mb=0.001) == 1  # HN's finished run only
+    assert not any("/sg/" in k for k in json.loads((keep / "MANIFEST.json").read_text()))
+    assert "> --max-mb 0.001" in capsys.readouterr().out
