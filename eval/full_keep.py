@@ -72,19 +72,19 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
     manifest, fingerprint, saved = _manifest(keep), sim_fingerprint(), 0
     for run in find_runs(out):
         key = run.path.relative_to(out).as_posix()
-        entry = manifest.get(key)
-        was_partial = bool(entry and entry.get("partial"))
-        if entry and not was_partial and entry.get("simulator") == fingerprint:
+        entry = manifest.get(key) or {}
+        kept = None if entry.get("partial") else entry or None  # a finished run, archived
+        if kept and kept.get("simulator") == fingerprint:
             continue
         results, tasks, state = _state(run, fingerprint)
-        if entry and not was_partial and (state.state != "done" or tasks != entry["tasks"]):
+        if kept and (state.state != "done" or tasks != kept["tasks"]):
             continue  # kept; not (yet) executed by this simulator
         if state.state == "done" and tasks > 0:
-            _archive(run, keep, key, left_out=LEFT_OUT)
-            manifest[key] = _entry(keep, key, results, tasks)
+            sha = _archive(run, keep, key, left_out=LEFT_OUT)
+            manifest[key] = _entry(keep, key, sha, results, tasks)
         elif partial and state.state == "partial" and tasks > 0:
-            if was_partial and tasks <= entry["tasks"]:
-                continue  # kept at this task already
+            if tasks <= entry.get("tasks", 0):
+                continue  # kept partial at this task already
             ckpt = run.checkpoint_path
             mb = ckpt.stat().st_size / 1e6 if ckpt.is_file() else 0.0
             if mb == 0 or mb > max_mb:
@@ -92,8 +92,8 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
                        else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
                 print(f"  {key}: not kept ({state.reason}; {why})")
                 continue
-            _archive(run, keep, key, left_out=("checkpoints",))  # checkpoint.pt goes in
-            manifest[key] = _entry(keep, key, results, tasks) | {"partial": True}
+            sha = _archive(run, keep, key, left_out=("checkpoints",))  # checkpoint.pt goes in
+            manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
         else:
             print(f"  {key}: not kept ({state.reason or state.state})")
             continue
@@ -105,18 +105,19 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
     return saved
 
 
-def _archive(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]) -> None:
+def _archive(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]) -> str:
+    """Writes ``KEEP/<key>.tar.xz`` from the run without ``left_out``; returns its sha256."""
     archive = keep / f"{key}.tar.xz"
     archive.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
         staging = Path(tmp) / run.path.name
         shutil.copytree(run.path, staging, ignore=shutil.ignore_patterns(*left_out))
-        make_archive(staging, archive)
+        return make_archive(staging, archive)
 
 
-def _entry(keep: Path, key: str, results: dict, tasks: int) -> dict:
+def _entry(keep: Path, key: str, sha: str, results: dict, tasks: int) -> dict:
     archive = keep / f"{key}.tar.xz"
-    return {"sha256": sha256_file(archive), "size": archive.stat().st_size, "tasks": tasks,
+    return {"sha256": sha, "size": archive.stat().st_size, "tasks": tasks,
             "train_cpu_s": results.get("train_cpu_s"),
             "simulator": (results.get("sim") or {}).get("fingerprint")}
 
