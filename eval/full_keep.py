@@ -90,7 +90,7 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
             if mb == 0 or mb > max_mb:
                 why = ("no checkpoint" if mb == 0
                        else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
-                print(f"  {key}: not kept ({state.reason}; {why})")
+                print(f"  {key}: not kept (unfinished, {tasks} tasks learned; {why})")
                 continue
             sha = _archive(run, keep, key, left_out=("checkpoints",))  # checkpoint.pt goes in
             manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
