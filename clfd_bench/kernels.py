@@ -17,9 +17,12 @@ float-rounding variants of one matrix product ends with predictions up to 2 cm a
   7x64 by 64x16 ``sgemm`` (small ``m`` and ``n``; ``k`` apparently split between threads)
   differed by 4e-6 between 1 and 2 threads; it was the only operation of a CHN smoke run
   whose result depended on the thread count (every operation's inputs and outputs hashed at
-  1 and 2 threads). :func:`gemm_thread_probe` measures whether this machine's products depend on the
-  thread count and the provenance records it, so a reader knows whether ``--threads`` could
-  have moved a result.
+  1 and 2 threads). :func:`gemm_thread_probe` measures whether this machine's products depend
+  on the thread count; where they do, :func:`set_threads` (which training uses instead of
+  ``torch.set_num_threads``) holds MKL to one thread, which makes them identical again, while
+  torch's own kernels keep ``--threads``. The provenance records the probe, so a reader
+  knows whether ``--threads`` could have moved a result. Training's default is one thread,
+  where none of this arises.
 - **CPUs.** Across CPUs the kernels differ by instruction set (PyTorch's vector kernels and
   MKL's dispatch: AVX2, AVX-512), so results are reproducible on one machine, not across
   machines: :func:`blas_provenance` records the CPU capability and the BLAS libraries beside
@@ -34,7 +37,7 @@ import re
 from typing import Any
 
 __all__ = ["MKL_CBWR_DEFAULT", "blas_provenance", "gemm_thread_probe",
-           "pin_thread_invariant_kernels"]
+           "pin_thread_invariant_kernels", "set_threads"]
 
 #: MKL's reproducibility mode clfd-bench runs with: the CPU's best code path, results
 #: independent of the number of threads.
@@ -54,37 +57,101 @@ GEMM_PROBE_SHAPES: tuple[tuple[int, int, int, bool], ...] = (
     (300, 64, 64, True))
 
 
+def _mkl_set_local_threads() -> Any:
+    """MKL's ``MKL_Set_Num_Threads_Local`` (one ``int`` by value) as exported by PyTorch's
+    CPU library, or None where there is none (no MKL: ARM, macOS; another build)."""
+    import ctypes
+
+    import torch
+
+    lib_dir = os.path.join(os.path.dirname(torch.__file__), "lib")
+    for name in ("libtorch_cpu.so", "libtorch_cpu.dylib", "torch_cpu.dll"):
+        path = os.path.join(lib_dir, name)
+        if os.path.exists(path):
+            try:
+                fn = ctypes.CDLL(path).MKL_Set_Num_Threads_Local
+            except (OSError, AttributeError):
+                return None
+            fn.argtypes, fn.restype = [ctypes.c_int], ctypes.c_int
+            return fn
+    return None
+
+
+def _products_max_diff(single_threaded_mkl: bool) -> float:
+    """Largest difference of :data:`GEMM_PROBE_SHAPES`' products between 1 and 2 torch
+    threads, with MKL's own threads left to torch or held at one (the caller restores the
+    thread count)."""
+    import torch
+
+    pin = _mkl_set_local_threads() if single_threaded_mkl else None
+    gen = torch.Generator().manual_seed(0)
+    worst = 0.0
+    for m, k, n, bias in GEMM_PROBE_SHAPES:
+        a, b = torch.randn(m, k, generator=gen), torch.randn(k, n, generator=gen)
+        c = torch.randn(n, generator=gen)
+        out = []
+        for threads in (1, 2):
+            torch.set_num_threads(threads)
+            if pin is not None:
+                pin(1)
+            out.append(torch.addmm(c, a, b) if bias else a @ b)
+        worst = max(worst, float((out[0] - out[1]).abs().max()))
+    return worst
+
+
 @functools.lru_cache(maxsize=1)
 def gemm_thread_probe() -> dict[str, Any]:
-    """Whether this process's matrix products depend on the number of threads.
+    """Whether this process's matrix products depend on the number of threads, and the
+    remedy :func:`set_threads` applies.
 
     Computes each product of :data:`GEMM_PROBE_SHAPES` (float32, fixed random inputs) with 1
-    and with 2 torch threads and compares them bit for bit; the thread count is restored after.
-    Measured once per process (MKL's mode is fixed at its first call), in tens of milliseconds.
+    and with 2 torch threads and compares them bit for bit. Where they differ (MKL's strict
+    mode does not hold: an AMD EPYC, 2026-12-07) and MKL's per-thread setting is available, it
+    measures again with MKL's products held to one thread while torch keeps its threads for
+    its own kernels; if that makes them identical, :func:`set_threads` holds MKL to one
+    thread from then on. The thread count is restored after. Measured once per process (MKL's
+    mode is fixed at its first call), in tens of milliseconds.
 
-    Returns ``{"threads": [1, 2], "identical": bool, "max_abs_diff": float}``. ``identical``
-    true means every probed product was bit-identical across thread counts (as MKL's strict
-    mode promises on Intel CPUs); false means ``--threads`` can move a result at rounding
-    level on this machine. It probes these shapes only: it cannot prove every product
-    invariant, but a false is a measured counterexample.
+    Returns ``{"threads": [1, 2], "identical": bool, "max_abs_diff": float,
+    "mkl_single_threaded": bool, "unpinned_max_abs_diff": float}``: ``identical`` and
+    ``max_abs_diff`` describe the products as this process computes them (after the remedy),
+    ``unpinned_max_abs_diff`` MKL's own behaviour, ``mkl_single_threaded`` whether the remedy
+    is on. ``identical`` false means ``--threads`` can move a result at rounding level here.
+    It probes these shapes only: it cannot prove every product invariant, but a false is a
+    measured counterexample.
     """
     import torch
 
     previous = torch.get_num_threads()
-    gen = torch.Generator().manual_seed(0)
-    worst = 0.0
     try:
-        for m, k, n, bias in GEMM_PROBE_SHAPES:
-            a, b = torch.randn(m, k, generator=gen), torch.randn(k, n, generator=gen)
-            c = torch.randn(n, generator=gen)
-            out = []
-            for threads in (1, 2):
-                torch.set_num_threads(threads)
-                out.append(torch.addmm(c, a, b) if bias else a @ b)
-            worst = max(worst, float((out[0] - out[1]).abs().max()))
+        unpinned = _products_max_diff(single_threaded_mkl=False)
+        pinned = (_products_max_diff(single_threaded_mkl=True)
+                  if unpinned > 0.0 and _mkl_set_local_threads() is not None else None)
     finally:
         torch.set_num_threads(previous)
-    return {"threads": [1, 2], "identical": worst == 0.0, "max_abs_diff": worst}
+    single = pinned == 0.0
+    worst = 0.0 if single else unpinned
+    if single:
+        _mkl_set_local_threads()(1)
+    return {"threads": [1, 2], "identical": worst == 0.0, "max_abs_diff": worst,
+            "mkl_single_threaded": single, "unpinned_max_abs_diff": unpinned}
+
+
+def set_threads(threads: int) -> None:
+    """Sets torch's CPU threads for this thread's work, keeping matrix products independent
+    of the count.
+
+    ``torch.set_num_threads(threads)``; then, where :func:`gemm_thread_probe` found MKL's
+    products thread-dependent and curable, MKL is held to one thread for the calling thread
+    (torch resets MKL's threads on every ``set_num_threads``, so call this instead of it).
+    torch's own kernels keep ``threads``; only MKL's products lose their parallelism, on CPUs
+    where MKL's strict mode does not hold.
+    """
+    import torch
+
+    torch.set_num_threads(threads)
+    if gemm_thread_probe()["mkl_single_threaded"]:
+        _mkl_set_local_threads()(1)
 
 
 def blas_provenance() -> dict[str, Any]:

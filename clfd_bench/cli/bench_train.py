@@ -151,15 +151,15 @@ def bench_method(
 
 
 def _run(args: argparse.Namespace) -> int:
-    import torch
 
     from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.protocol import default_threads
     from clfd_bench.harness.validate import InputError
+    from clfd_bench.kernels import set_threads
     from clfd_bench.methods import UnknownMethodError
 
     threads = args.threads or default_threads()
-    torch.set_num_threads(threads)
+    set_threads(threads)
     print(f"training speed, profile {args.profile!r} model sizes, {node_label(args.node)}, "
           f"{threads} torch thread(s); "
           f"{args.iterations} timed iterations per task")

@@ -44,6 +44,7 @@ from clfd_bench.harness.learner import Learner
 from clfd_bench.harness.loop import TaskRun, TrainingDivergedError, TrainStats, train_tasks, warm_up
 from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.io import json_safe
+from clfd_bench.kernels import set_threads
 from clfd_bench.runs import CHECKPOINT_FILE, RunDir
 
 __all__ = [
@@ -183,7 +184,7 @@ def load_learner(run_dir: str | os.PathLike[str], *,
     (an sNODE's LASA predictions over 50x the demo's duration, 101 starts: 5 min 12 s for one
     shape with two threads, against 16 s per 10x with one).
     """
-    torch.set_num_threads(threads or default_threads())
+    set_threads(threads or default_threads())
     run = RunDir(run_dir)
     header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
     config = RunConfig.from_dict(header["config"])
@@ -386,7 +387,7 @@ def run_trainings(jobs: Sequence[TrainingJob], *, threads: int | None = None
         per job, its final ``results.json``, or the exception that stopped it.
     """
     threads = threads or default_threads()
-    torch.set_num_threads(threads)
+    set_threads(threads)
     runs: list[_ProtocolRun | None] = []
     outcome: list[dict[str, Any] | Exception | None] = []
     for job in jobs:
