@@ -59,7 +59,9 @@ main() {
   # session (setsid, as above) on a kernel with autogroup scheduling: each session is its own
   # group, groups share the CPUs equally whatever their processes' nice, and on 2 cores these
   # runs took 2/3 of the CPU from a test suite (2026-12-07). So the session's group is niced
-  # too, only when this script leads it (never the caller's terminal session).
+  # too, only when this script leads it (never the caller's terminal session). The grid's
+  # training workers lead sessions of their own and take this group's nice from the grid
+  # (clfd_bench.procs.keep_parent_priority; before that they ran at group nice 0, 2026-12-07).
   if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ] && [ -w /proc/self/autogroup ]; then
     echo 10 > /proc/self/autogroup 2>/dev/null || true
   fi

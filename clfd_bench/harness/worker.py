@@ -136,9 +136,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the job given as the one argument; return the exit code (module docstring)."""
     from clfd_bench.harness.run import Training, checked_run, failure
     from clfd_bench.harness.validate import check_env_count
-    from clfd_bench.procs import die_with_parent_from_env
+    from clfd_bench.procs import die_with_parent_from_env, keep_parent_priority
 
     die_with_parent_from_env()  # started by a grid: end with it, even if it is SIGKILLed
+    keep_parent_priority()  # in its own session: yield the CPU as the grid does
     if hasattr(sys.stdout, "reconfigure"):  # whole lines reach train.log as they are printed
         sys.stdout.reconfigure(line_buffering=True)
     argv = sys.argv[1:] if argv is None else list(argv)

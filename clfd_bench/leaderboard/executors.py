@@ -45,7 +45,7 @@ from clfd_bench.leaderboard.grid import (
     RunSpec,
     lockstep_batches,
 )
-from clfd_bench.procs import PARENT_ENV
+from clfd_bench.procs import child_env
 from clfd_bench.runs import RunDir
 
 __all__ = ["EXECUTORS", "RunOutcome", "execute_grid"]
@@ -86,8 +86,9 @@ def end_children() -> None:
 def _child(argv: list[str], log) -> int:
     """Run ``argv`` with stdout and stderr to the open file ``log``; its exit code."""
     # Own session and process group; the child arms its death signal itself (no
-    # preexec_fn: it is unsafe in a threaded parent), given this process's pid.
-    env = {**_run_env(), PARENT_ENV: str(os.getpid())}
+    # preexec_fn: it is unsafe in a threaded parent), given this process's pid, and takes
+    # this process's priority for its own scheduling group (clfd_bench.procs).
+    env = child_env(_run_env())
     child = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env,
                              start_new_session=True)
     with _CHILDREN_LOCK:
