@@ -36,7 +36,7 @@ import os
 import re
 from typing import Any
 
-__all__ = ["MKL_CBWR_DEFAULT", "blas_provenance", "gemm_thread_probe",
+__all__ = ["MKL_CBWR_DEFAULT", "THREAD_INVARIANT_ENV", "blas_provenance", "gemm_thread_probe",
            "pin_thread_invariant_kernels", "set_threads"]
 
 #: MKL's reproducibility mode clfd-bench runs with: the CPU's best code path, results
@@ -48,6 +48,10 @@ def pin_thread_invariant_kernels() -> str:
     """Sets ``MKL_CBWR`` to :data:`MKL_CBWR_DEFAULT` unless it is set; returns its value."""
     return os.environ.setdefault("MKL_CBWR", MKL_CBWR_DEFAULT)
 
+
+#: Set to ``0`` to keep MKL's own threads where that makes ``--threads`` move results (speed
+#: over bit-identity across thread counts; :func:`set_threads` has the measured cost).
+THREAD_INVARIANT_ENV = "CLFD_THREAD_INVARIANT"
 
 #: ``(m, k, n, bias)`` of the products :func:`gemm_thread_probe` computes: MKL's small-``m``,
 #: small-``n`` path that splits ``k`` between threads (the one measured to differ on an AMD
@@ -125,8 +129,10 @@ def gemm_thread_probe() -> dict[str, Any]:
     previous = torch.get_num_threads()
     try:
         unpinned = _products_max_diff(single_threaded_mkl=False)
+        wanted = os.environ.get(THREAD_INVARIANT_ENV, "1").strip() != "0"
         pinned = (_products_max_diff(single_threaded_mkl=True)
-                  if unpinned > 0.0 and _mkl_set_local_threads() is not None else None)
+                  if wanted and unpinned > 0.0 and _mkl_set_local_threads() is not None
+                  else None)
     finally:
         torch.set_num_threads(previous)
     single = pinned == 0.0
@@ -145,7 +151,13 @@ def set_threads(threads: int) -> None:
     products thread-dependent and curable, MKL is held to one thread for the calling thread
     (torch resets MKL's threads on every ``set_num_threads``, so call this instead of it).
     torch's own kernels keep ``threads``; only MKL's products lose their parallelism, on CPUs
-    where MKL's strict mode does not hold.
+    where MKL's strict mode does not hold. Measured on a 2-core AMD EPYC, idle, paper-size
+    HelloWorld models (``clfd-bench bench train --methods hn sg --profile full --threads 2
+    --iterations 10``, 2026-12-07): SG 2.3-2.8 it/s held against 5.2-5.3 with MKL's two
+    threads (one thread: 2.9-3.4), HN 30.8/13.9 against 31.4/19.1 (task 0/1). Where speed at
+    several threads matters more than bit-identity across thread counts, set
+    ``CLFD_THREAD_INVARIANT=0`` (:data:`THREAD_INVARIANT_ENV`); the probe then records
+    ``mkl_single_threaded: false`` and ``identical: false``.
     """
     import torch
 

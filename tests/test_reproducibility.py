@@ -102,3 +102,15 @@ def test_the_gemm_probe_restores_the_thread_count_and_says_what_it_measured():
             assert float((one - two).abs().max()) <= bound, setter
     finally:
         set_threads(before)
+
+
+def test_speed_over_invariance_keeps_mkl_threads_and_says_so(env):
+    """``CLFD_THREAD_INVARIANT=0``: MKL keeps its threads, and the probe says what that means."""
+    code = ("import json; from clfd_bench.kernels import gemm_thread_probe; "
+            "print(json.dumps(gemm_thread_probe()))")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
+                         env=env | {"CLFD_THREAD_INVARIANT": "0"}, timeout=120).stdout
+    probe = json.loads(out.strip().splitlines()[-1])
+    assert probe["mkl_single_threaded"] is False
+    assert probe["max_abs_diff"] == probe["unpinned_max_abs_diff"]
+    assert probe["identical"] == (probe["unpinned_max_abs_diff"] == 0.0)
