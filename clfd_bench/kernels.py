@@ -61,9 +61,11 @@ GEMM_PROBE_SHAPES: tuple[tuple[int, int, int, bool], ...] = (
     (300, 64, 64, True))
 
 
+@functools.lru_cache(maxsize=1)
 def _mkl_set_local_threads() -> Any:
     """MKL's ``MKL_Set_Num_Threads_Local`` (one ``int`` by value) as exported by PyTorch's
-    CPU library, or None where there is none (no MKL: ARM, macOS; another build)."""
+    CPU library, or None where there is none (no MKL: ARM, macOS; another build). Looked up
+    once per process."""
     import ctypes
 
     import torch
@@ -157,12 +159,13 @@ def set_threads(threads: int) -> None:
     threads (one thread: 2.9-3.4), HN 30.8/13.9 against 31.4/19.1 (task 0/1). Where speed at
     several threads matters more than bit-identity across thread counts, set
     ``CLFD_THREAD_INVARIANT=0`` (:data:`THREAD_INVARIANT_ENV`); the probe then records
-    ``mkl_single_threaded: false`` and ``identical: false``.
+    ``mkl_single_threaded: false`` and ``identical: false``. At one thread MKL has one thread
+    already, so nothing is probed or held there (predictions from saved runs, evaluation).
     """
     import torch
 
     torch.set_num_threads(threads)
-    if gemm_thread_probe()["mkl_single_threaded"]:
+    if threads > 1 and gemm_thread_probe()["mkl_single_threaded"]:
         _mkl_set_local_threads()(1)
 
 

@@ -151,7 +151,6 @@ def bench_method(
 
 
 def _run(args: argparse.Namespace) -> int:
-
     from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.protocol import default_threads
     from clfd_bench.harness.validate import InputError
