@@ -31,6 +31,8 @@ def _point_traj(T: int = 100) -> np.ndarray:
 
 def test_family_table_and_kinds():
     assert family_names(poses=False) == [f for f in FAMILIES if f != "frozen-orientation"]
+    assert family_names(poses=True) == [f for f in FAMILIES if f != "overrun"]
+    assert family_names() == list(FAMILIES)
     succeed = [f for f, fam in FAMILIES.items() if fam.expect == "succeed"]
     assert succeed == ["demo", "slower", "faster", "noise", "start-offset"]
     assert len(FAMILIES) - len(succeed) >= 8
@@ -115,6 +117,41 @@ def test_point_drift_is_relative_with_a_floor():
     big = traj * 5  # diagonal ~0.56 m: 15 % of it
     diag = np.linalg.norm(big.max(0) - big.min(0))
     assert np.linalg.norm(perturb("drift", big)[-1] - big[-1]) == pytest.approx(0.15 * diag)
+
+
+def test_overrun_is_the_demo_then_a_straight_run_on_past_its_end():
+    # A straight stroke along x, then a quarter circle of radius 5 cm turning to +y: its last
+    # 2 cm (the floor: the bounding box is ~0.1 m, 15 % of it is 1.5 cm) is an arc whose chord
+    # gives the direction to run on in.
+    line = np.column_stack([np.linspace(0.0, 0.05, 50), np.zeros(50)])
+    a = np.linspace(0.0, np.pi / 2, 80)[1:]
+    arc = np.column_stack([0.05 + 0.05 * np.sin(a), 0.05 - 0.05 * np.cos(a)])
+    traj = np.vstack([line, arc])
+    out = perturb("overrun", traj)
+    np.testing.assert_array_equal(out[: len(traj)], traj)  # the letter itself, unchanged
+    run_on = out[len(traj) - 1:]
+    assert np.linalg.norm(run_on[-1] - traj[-1]) == pytest.approx(0.02)  # the drift's distance
+    # The chord of the last 2 cm of arc: 2 cm of a 5 cm radius subtend 0.4 rad, so its chord
+    # points 0.2 rad short of +y, towards +x (the stretch starts at a sample, at most one
+    # sample, 0.02 rad of arc, earlier: its chord turns by half of that at most).
+    step = run_on[-1] - traj[-1]
+    assert np.arctan2(step[0], step[1]) == pytest.approx(0.2, abs=0.0101)
+    off = run_on - traj[-1]
+    np.testing.assert_allclose(off[:, 0] * step[1] - off[:, 1] * step[0], 0.0, atol=1e-15)
+    d = np.linalg.norm(run_on - traj[-1], axis=1)
+    assert np.all(np.diff(d) >= 0)  # on away from the end, from rest (min-jerk) ...
+    assert d[1] < 0.01 * d[-1]
+    # ... over the demo's own time for that stretch (the samples of its last 2 cm).
+    arcs = np.concatenate([[0.0], np.linalg.norm(np.diff(traj, axis=0), axis=1).cumsum()])
+    k = np.flatnonzero(arcs <= arcs[-1] - 0.02)[-1]  # where the last 2 cm begin
+    assert len(run_on) == len(traj) - k  # the end point, then one sample per demo sample
+    big = traj * 5  # 15 % of the diagonal above the floor
+    diag = np.linalg.norm(big.max(0) - big.min(0))
+    assert np.linalg.norm(perturb("overrun", big)[-1] - big[-1]) == pytest.approx(0.15 * diag)
+    with pytest.raises(ValueError, match="pen \\(point\\) trajectories only"):
+        perturb("overrun", _pose_traj())
+    with pytest.raises(ValueError, match="needs a trajectory that moves"):
+        perturb("overrun", np.zeros((10, 2)))
 
 
 def test_min_jerk_profile():

@@ -57,6 +57,28 @@ def test_drift_fails_the_end_check_where_the_shape_checks_let_it_pass():
     assert goal["value"] > 1.2 * goal["bound"]
 
 
+def test_a_pen_that_runs_on_past_the_end_fails_the_end_check(letter_env):
+    # `overrun`: the demo itself, then 15 % of the letter's size (>= 2 cm) on past its end.
+    # The end point is where the pen stops: past the end fails as short of it does.
+    env_id, env = letter_env
+    (rec,) = replay(env_id, [3], "overrun", env=env)
+    assert not rec.success and "goal" in rec.info["failed"], rec.info
+    (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
+    assert goal["value"] > 1.2 * goal["bound"]
+
+
+def test_overrun_is_seen_by_the_end_check_alone_on_w():
+    # 'w' demo 0 run on by 2.35 cm (1.59x its 1.48 cm bound) passes every shape check: HN
+    # `full` seed 1's 'w' (2.0 cm past, docs/execution.md "Running on past the end") is this
+    # case, and a rule that forgave running on would pass this must-fail family too.
+    env = gym.make("clfd/HelloWorld-w-v3")
+    (rec,) = replay("clfd/HelloWorld-w-v3", [0], "overrun", env=env)
+    env.close()
+    assert rec.info["failed"] == ["goal"], rec.info["failed"]
+    (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
+    assert goal["value"] == pytest.approx(0.0235, abs=5e-4) and goal["value"] > 1.5 * goal["bound"]
+
+
 @pytest.mark.parametrize("family", ["shortcut", "rush-wait", "mirror"])
 def test_wrong_shapes_fail_on_their_shape(letter_env, family):
     # Before v1, a straight stroke passed 'l' on 3/8 demos and rushing to the end and waiting

@@ -19,8 +19,17 @@ judge the same way every time:
 | `rush-wait` | fail | the same line in 10 % of the duration, then waiting at the end |
 | `mirror` | fail | the path reflected about its start → end chord, p' = 2·chord(t) − p |
 | `drift` | fail | an offset growing linearly to 5 cm (poses), 15 % of the size ≥ 2 cm (pen) |
+| `overrun` | fail | (pen only) the demo, then on past its end by the drift's distance (below) |
 | `teleport` | fail | the end pose commanded from the first step |
 | `frozen-orientation` | fail | (poses only) the orientation held at its first value |
+
+`overrun` is `stop-early`'s other side: a pen that runs on past the end of the letter by as
+much as `drift` ends off it, in the direction the demo's last stretch of that length runs (its
+chord), at the pace the demo took for that stretch (a min-jerk move from rest to rest). The
+letter itself is the demo's, so only where the ink ends tells it from the demo. It applies to
+pen trajectories only: the ink is the outcome a writing env judges and a stroke past the end
+is part of it, while in a scene the hand's motion after the task is done leaves the outcome
+unchanged (the scene judges the objects, not where the hand stops).
 
 Random families (`noise`, `start-offset`, `drift`) draw from a generator seeded with the family
 name and the demo index, so a table is reproducible. Distances are physical (metres on the
@@ -59,13 +68,14 @@ class PerturbContext:
 @dataclasses.dataclass(frozen=True)
 class Family:
     """One perturbation family: `expect` is "succeed" or "fail"; `poses_only` families apply
-    to 7-D pose trajectories only."""
+    to 7-D pose trajectories only, `pen_only` ones to pen (point) trajectories only."""
 
     name: str
     expect: str
     description: str
     fn: Callable[[np.ndarray, PerturbContext], np.ndarray]
     poses_only: bool = False
+    pen_only: bool = False
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -180,18 +190,41 @@ def _mirror(traj: np.ndarray, ctx: PerturbContext) -> np.ndarray:
     return out
 
 
+def _end_miss(traj: np.ndarray, ctx: PerturbContext) -> float:
+    """How far (data units) `drift` and `overrun` end from the demo's end: 5 cm for poses; for
+    the pen 15 % of the demo's bounding-box diagonal, at least 2 cm."""
+    if _is_pose(traj):
+        return 0.05 * ctx.units_per_m
+    p = traj[:, _pos(traj)]
+    diag = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+    return max(0.15 * diag, 0.02 * ctx.units_per_m)
+
+
 def _drift(traj: np.ndarray, ctx: PerturbContext) -> np.ndarray:
     sl = _pos(traj)
     p = traj[:, sl]
-    if _is_pose(traj):
-        size = 0.05 * ctx.units_per_m
-    else:
-        diag = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
-        size = max(0.15 * diag, 0.02 * ctx.units_per_m)
+    size = _end_miss(traj, ctx)
     direction = _unit(_rng("drift", ctx.demo), p.shape[1])
     out = traj.copy()
     out[:, sl] += np.linspace(0.0, 1.0, len(traj))[:, None] * size * direction
     return out
+
+
+def _overrun(traj: np.ndarray, ctx: PerturbContext) -> np.ndarray:
+    p = traj[:, _pos(traj)]
+    size = _end_miss(traj, ctx)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    if arc[-1] <= 0.0:
+        raise ValueError("family 'overrun' needs a trajectory that moves (its last stretch "
+                         "gives the direction to run on in); this one stays at one point")
+    k = max(int(np.searchsorted(arc, arc[-1] - size, side="right")) - 1, 0)
+    chord = p[-1] - p[k]
+    if not np.linalg.norm(chord) > 0.0:  # the last stretch closes on itself: its last step
+        k = int(np.flatnonzero(arc < arc[-1])[-1])
+        chord = p[-1] - p[k]
+    step = chord / np.linalg.norm(chord) * size
+    run_on = p[-1] + min_jerk(max(len(p) - k, 2))[1:, None] * step
+    return np.concatenate([traj, run_on])
 
 
 def _teleport(traj: np.ndarray, ctx: PerturbContext) -> np.ndarray:
@@ -219,6 +252,8 @@ _ALL = (
     Family("mirror", "fail", "path reflected about its start -> end chord", _mirror),
     Family("drift", "fail", "offset growing to 5 cm (poses) / 15 % of the size, >= 2 cm (pen)",
            _drift),
+    Family("overrun", "fail", "the demo, then on past its end along its last stretch by the "
+           "drift's distance", _overrun, pen_only=True),
     Family("teleport", "fail", "the end pose commanded from the first step", _teleport),
     Family("frozen-orientation", "fail", "orientation held at its first value",
            _frozen_orientation, poses_only=True),
@@ -228,8 +263,10 @@ FAMILIES: dict[str, Family] = {f.name: f for f in _ALL}
 
 
 def family_names(poses: bool | None = None) -> list[str]:
-    """Family names in table order; `poses=False` leaves out the pose-only ones."""
-    return [f.name for f in _ALL if poses is not False or not f.poses_only]
+    """Family names in table order; `poses=False` leaves out the pose-only ones, `poses=True`
+    the pen-only ones, None leaves out none."""
+    return [f.name for f in _ALL
+            if not (poses is False and f.poses_only) and not (poses is True and f.pen_only)]
 
 
 def perturb(family: str, trajectory: np.ndarray, ctx: PerturbContext | None = None
@@ -238,7 +275,8 @@ def perturb(family: str, trajectory: np.ndarray, ctx: PerturbContext | None = No
 
     Raises:
         ValueError: unknown family (lists the valid ones), a pose-only family on a 2-D
-            trajectory, or `other-task` without `ctx.other`.
+            trajectory, a pen-only family on a pose trajectory, `overrun` on a trajectory that
+            does not move, or `other-task` without `ctx.other`.
     """
     if family not in FAMILIES:
         raise ValueError(f"unknown perturbation family {family!r}; valid: {list(FAMILIES)}")
@@ -249,4 +287,7 @@ def perturb(family: str, trajectory: np.ndarray, ctx: PerturbContext | None = No
     if fam.poses_only and not _is_pose(traj):
         raise ValueError(f"family {family!r} applies to 7-D pose trajectories only, got D = "
                          f"{traj.shape[1]}")
+    if fam.pen_only and _is_pose(traj):
+        raise ValueError(f"family {family!r} applies to pen (point) trajectories only, got a "
+                         "7-D pose trajectory")
     return fam.fn(traj, ctx or PerturbContext())

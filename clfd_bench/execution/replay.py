@@ -30,9 +30,10 @@ RoboTasks prop may be let go as far from demo j's release point as another demo 
 (`release_offset`), the cup emptied as far from demo j's pour point as another demo empties it
 (`pour_offset`), the lid opened as far as the least-opened demo (`lid_opened`)
 (`clfd_bench.envs.robotasks.derive`). A variant of a family that is wrong only by where it ends
-(`END_FAMILIES`: drift) whose rollout passes every such check (`SPREAD_CHECKS`) ends within the
-demos' spread: it is not a wrong trajectory and is counted "n/a" (`within_demo_spread`). Where
-it ends beyond that spread, the check it passes nowhere else fails it, and it counts.
+(`END_FAMILIES`: drift; overrun, which no scene runs) whose rollout passes every such check
+(`SPREAD_CHECKS`) ends within the demos' spread: it is not a wrong trajectory and is counted
+"n/a" (`within_demo_spread`). Where it ends beyond that spread, the check it passes nowhere
+else fails it, and it counts.
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ SHAPE_FAMILIES = ("shortcut", "rush-wait", "mirror")
 #: its `stop-early` variant is not a wrong trajectory (see the module docstring).
 REST_TOLERANCE = (0.005, 2.0)
 #: Must-fail families that are wrong only by where they end (see the module docstring).
-END_FAMILIES = ("drift",)
+END_FAMILIES = ("drift", "overrun")
 #: Scene checks (`info["checks"]` names) whose bound is the demos' own spread of where they end.
 SPREAD_CHECKS = ("release_offset", "pour_offset", "lid_opened")
 
@@ -138,7 +139,8 @@ def _units_per_m(env: PandaEnv) -> float:
 
 
 def families_for(env: PandaEnv) -> list[str]:
-    """The families that apply to an env (pose-only ones for pose envs only)."""
+    """The families that apply to an env (pose-only ones for pose envs only, pen-only ones for
+    pen envs only)."""
     return family_names(poses=env.action_space.shape[0] >= 7)
 
 
