@@ -41,7 +41,8 @@ import numpy as np
 from clfd_bench.envs.checks import Check
 from clfd_bench.execution.borderline import Borderline, Pick, select_borderline
 
-__all__ = ["GalleryReport", "build_gallery", "pick_caption", "sheet_picks"]
+__all__ = ["GalleryReport", "build_gallery", "draw_writing", "execute_writing",
+           "pick_caption", "sheet_picks"]
 
 #: Pixels of one scene's closing frame.
 _FRAME_W, _FRAME_H = 800, 600
@@ -253,23 +254,14 @@ class _Drawer:
         traj = self._prediction(lab)
         demo = int(lab["demo"])
         if getattr(base, "tool", None) == "pen" and hasattr(base, "target"):
-            from clfd_bench.execution.execute import execute
-
-            result = execute(env, traj, demo, stop_when_decided=False)
-            drawn = {"kind": "writing", "target": np.asarray(base.target(), float),
-                     "demos": np.asarray(base.demos, float),
-                     "ink": base.to_data(base.ink_trace()), "goal": np.asarray(base.goal),
-                     "prediction": np.asarray(traj, float),
-                     "data_units": str(getattr(base, "data_units", "")),
-                     "flip": getattr(base, "dataset", "") == "helloworld",
-                     "sim_scale": float(getattr(base, "sim_scale", 1.0))}
+            drawn = execute_writing(env, traj, demo)
         else:
             style = VideoStyle(width=_FRAME_W, height=_FRAME_H)
             result, frame = closing_frame(env, traj, demo,
                                           demonstration=self._demonstration(lab), style=style)
             drawn = {"kind": "scene", "frame": frame}
-        drawn["result"] = result
-        drawn["checks"] = result.checks() or []
+            drawn["result"] = result
+            drawn["checks"] = result.checks() or []
         self._done = {key: drawn}  # keep one: picks of one execution are drawn in a row
         return drawn
 
@@ -290,7 +282,7 @@ class _Drawer:
         fig = plt.figure(figsize=(_FRAME_W / _DPI, 7.4), dpi=_DPI)
         ax = fig.add_axes((0.1, 0.25, 0.87, 0.6))
         if drawn["kind"] == "writing":
-            _draw_writing(ax, drawn, pick.check)
+            draw_writing(ax, drawn, pick.check)
         else:
             ax.imshow(drawn["frame"])
             ax.set_axis_off()
@@ -327,8 +319,32 @@ def _bound_in_data(check: Check, drawn: dict[str, Any]) -> float | None:
     return None
 
 
-def _draw_writing(ax: Any, drawn: dict[str, Any], check: Check) -> None:
-    """Ink against target in data units, with the check's bound where it is a distance."""
+def execute_writing(env: Any, trajectory: np.ndarray, demo: int) -> dict[str, Any]:
+    """Executes `trajectory` ([T, 2], the task's data units) on a writing env (letter or shape)
+    against demo `demo`, to the horizon, and returns what :func:`draw_writing` draws: kind
+    "writing", target [T', 2], demos [N, T', 2], ink [K, 2] (data units), goal [2],
+    prediction [T, 2], data_units, flip (HelloWorld: drawn as the letter reads), sim_scale,
+    result (:class:`clfd_bench.execution.execute.ExecResult`) and checks (its final
+    :class:`Check` list)."""
+    from clfd_bench.execution.execute import execute
+
+    base = env.unwrapped
+    result = execute(env, trajectory, demo, stop_when_decided=False)
+    return {"kind": "writing", "target": np.asarray(base.target(), float),
+            "demos": np.asarray(base.demos, float),
+            "ink": base.to_data(base.ink_trace()), "goal": np.asarray(base.goal),
+            "prediction": np.asarray(trajectory, float),
+            "data_units": str(getattr(base, "data_units", "")),
+            "flip": getattr(base, "dataset", "") == "helloworld",
+            "sim_scale": float(getattr(base, "sim_scale", 1.0)),
+            "result": result, "checks": result.checks() or []}
+
+
+def draw_writing(ax: Any, drawn: dict[str, Any], check: Check) -> None:
+    """Draws on matplotlib axes `ax` the ink against the target in data units (the task's demos,
+    the target demo, the prediction, the ink, start and end point; `drawn` from
+    :func:`execute_writing`), with `check`'s bound where it is a distance (the end point's
+    as a circle around the end point, Hausdorff's as the farthest pair of points)."""
     import matplotlib.patches as mpatches
 
     from clfd_bench.metrics.trajectory import nearest_distances
