@@ -156,7 +156,9 @@ def set_threads(threads: int) -> None:
     where MKL's strict mode does not hold. Measured on a 2-core AMD EPYC, idle, paper-size
     HelloWorld models (``clfd-bench bench train --methods hn sg --profile full --threads 2
     --iterations 10``, 2026-12-07): SG 2.3-2.8 it/s held against 5.2-5.3 with MKL's two
-    threads (one thread: 2.9-3.4), HN 30.8/13.9 against 31.4/19.1 (task 0/1). Where speed at
+    threads (one thread: 2.9-3.4), HN 30.8/13.9 against 31.4/19.1 (task 0/1); again with
+    ``CLFD_THREAD_INVARIANT=0`` itself: SG 2.8-3.0 against 4.0-4.3 (one thread 2.7-3.0), HN
+    23.9/18.3 against 29.2/20.7. Where speed at
     several threads matters more than bit-identity across thread counts, set
     ``CLFD_THREAD_INVARIANT=0`` (:data:`THREAD_INVARIANT_ENV`); the probe then records
     ``mkl_single_threaded: false`` and ``identical: false``. At one thread MKL has one thread
