@@ -37,7 +37,7 @@ import re
 from typing import Any
 
 __all__ = ["MKL_CBWR_DEFAULT", "THREAD_INVARIANT_ENV", "blas_provenance", "gemm_thread_probe",
-           "pin_thread_invariant_kernels", "set_threads"]
+           "pin_thread_invariant_kernels", "set_threads", "thread_invariance_wanted"]
 
 #: MKL's reproducibility mode clfd-bench runs with: the CPU's best code path, results
 #: independent of the number of threads.
@@ -52,6 +52,22 @@ def pin_thread_invariant_kernels() -> str:
 #: Set to ``0`` to keep MKL's own threads where that makes ``--threads`` move results (speed
 #: over bit-identity across thread counts; :func:`set_threads` has the measured cost).
 THREAD_INVARIANT_ENV = "CLFD_THREAD_INVARIANT"
+_ON, _OFF = ("", "1", "true", "yes", "on"), ("0", "false", "no", "off")
+
+
+def thread_invariance_wanted() -> bool:
+    """Whether ``CLFD_THREAD_INVARIANT`` asks for results that ``--threads`` does not move:
+    unset, empty, 1/true/yes/on (any case) yes; 0/false/no/off no.
+
+    Raises:
+        ValueError: any other value (a typo must not silently keep the default).
+    """
+    raw = os.environ.get(THREAD_INVARIANT_ENV, "").strip().lower()
+    if raw in _ON or raw in _OFF:
+        return raw in _ON
+    raise ValueError(f"{THREAD_INVARIANT_ENV}={os.environ[THREAD_INVARIANT_ENV]!r} is not "
+                     "understood: set it to 0 (keep MKL's threads: faster at --threads > 1, "
+                     "results may move with the thread count) or 1 (the default), or unset it")
 
 #: ``(m, k, n, bias)`` of the products :func:`gemm_thread_probe` computes: MKL's small-``m``,
 #: small-``n`` path that splits ``k`` between threads (the one measured to differ on an AMD
@@ -131,7 +147,7 @@ def gemm_thread_probe() -> dict[str, Any]:
     previous = torch.get_num_threads()
     try:
         unpinned = _products_max_diff(single_threaded_mkl=False)
-        wanted = os.environ.get(THREAD_INVARIANT_ENV, "1").strip() != "0"
+        wanted = thread_invariance_wanted()
         pinned = (_products_max_diff(single_threaded_mkl=True)
                   if wanted and unpinned > 0.0 and _mkl_set_local_threads() is not None
                   else None)

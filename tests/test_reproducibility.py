@@ -114,3 +114,26 @@ def test_speed_over_invariance_keeps_mkl_threads_and_says_so(env):
     assert probe["mkl_single_threaded"] is False
     assert probe["max_abs_diff"] == probe["unpinned_max_abs_diff"]
     assert probe["identical"] == (probe["unpinned_max_abs_diff"] == 0.0)
+
+
+@pytest.mark.parametrize("value,wanted", [(None, True), ("", True), ("1", True), (" On ", True),
+                                          ("TRUE", True), ("0", False), ("off", False),
+                                          ("No", False), ("false", False)])
+def test_thread_invariance_switch_reads_common_spellings(monkeypatch, value, wanted):
+    from clfd_bench.kernels import THREAD_INVARIANT_ENV, thread_invariance_wanted
+
+    if value is None:
+        monkeypatch.delenv(THREAD_INVARIANT_ENV, raising=False)
+    else:
+        monkeypatch.setenv(THREAD_INVARIANT_ENV, value)
+    assert thread_invariance_wanted() is wanted
+
+
+def test_a_mistyped_thread_invariance_switch_is_refused(monkeypatch):
+    """``CLFD_THREAD_INVARIANT=flase`` must not silently keep (or drop) invariance."""
+    from clfd_bench.kernels import THREAD_INVARIANT_ENV, gemm_thread_probe
+
+    monkeypatch.setenv(THREAD_INVARIANT_ENV, "flase")
+    with pytest.raises(ValueError, match="CLFD_THREAD_INVARIANT='flase' is not understood: "
+                                         "set it to 0"):
+        gemm_thread_probe.__wrapped__()  # the cached result may come from before the typo

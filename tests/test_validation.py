@@ -371,3 +371,13 @@ def test_divergence_is_one_line_and_keeps_finished_tasks(capsys, tmp_path, monke
     results = json.loads((out / "results.json").read_text())
     assert results["tasks_done"] == 1 and not results["complete"]
     assert (out / "checkpoint.pt").is_file()
+
+
+@pytest.mark.parametrize("argv", [[*TRAIN, "--method", "sg", "--threads", "2"], GRID],
+                         ids=["train", "leaderboard"])
+def test_a_mistyped_thread_invariance_switch_launches_nothing(capsys, tmp_path, monkeypatch,
+                                                              argv):
+    monkeypatch.setenv("CLFD_THREAD_INVARIANT", "ture")
+    refused(capsys, argv, tmp_path / "out", "CLFD_THREAD_INVARIANT='ture' is not understood",
+            "set it to 0")
+    assert list(tmp_path.iterdir()) == []

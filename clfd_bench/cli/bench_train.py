@@ -100,9 +100,10 @@ def bench_method(
     from clfd_bench.harness.config import resolve_config
     from clfd_bench.harness.learner import Learner
     from clfd_bench.harness.loop import TaskRun, train_tasks, warm_up
-    from clfd_bench.harness.validate import check_count
+    from clfd_bench.harness.validate import check_count, check_thread_invariance
 
     check_count("--runs", runs)
+    check_thread_invariance()
     warm_up()
     config = resolve_config(method, dataset, profile, seed=seed, overrides=overrides, node=node)
     ds = load_dataset(dataset)

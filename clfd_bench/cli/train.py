@@ -74,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from clfd_bench.harness.config import ConfigError
     from clfd_bench.harness.run import Training, TrainSpec, checked_run
-    from clfd_bench.harness.validate import check_count, check_env_count
+    from clfd_bench.harness.validate import check_count, check_env_count, check_thread_invariance
     from clfd_bench.methods import MethodClassError, UnknownMethodError
 
     # Validation at the edge: every check runs before any folder is created or any training
@@ -83,6 +83,7 @@ def _run(args: argparse.Namespace) -> int:
     check_count("--sim-workers", args.sim_workers)
     if args.threads is None:
         check_env_count("CLFD_THREADS")
+    check_thread_invariance()
     spec = TrainSpec(args.method, args.dataset, args.profile, seed=args.seed, order=args.order,
                      node=args.node, tasks=args.tasks, overrides=tuple(args.overrides),
                      config_file=args.config)

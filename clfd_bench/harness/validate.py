@@ -27,6 +27,7 @@ __all__ = [
     "check_out_dir",
     "check_robot_model",
     "check_run_out_dir",
+    "check_thread_invariance",
 ]
 
 
@@ -63,6 +64,21 @@ def check_env_count(name: str, minimum: int = 1) -> None:
     if value is None or value < minimum:
         raise InputError(f"environment variable {name}={raw}: must be an integer >= "
                          f"{minimum}; set it to e.g. {minimum}, or unset it")
+
+
+def check_thread_invariance() -> None:
+    """``CLFD_THREAD_INVARIANT``, if set, is a yes or a no
+    (:func:`clfd_bench.kernels.thread_invariance_wanted`).
+
+    Raises:
+        InputError: e.g. ``CLFD_THREAD_INVARIANT='flase' is not understood: set it to 0 ...``.
+    """
+    from clfd_bench.kernels import thread_invariance_wanted
+
+    try:
+        thread_invariance_wanted()
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _writable(path: Path) -> bool:

@@ -100,12 +100,13 @@ def _run_log(out: str) -> Callable[[str], None]:
 def _lockstep(outcomes_path: str, texts: Sequence[str]) -> int:
     """Several jobs in lockstep (module docstring)."""
     from clfd_bench.harness.run import Training, checked_lockstep, failure
-    from clfd_bench.harness.validate import check_env_count
+    from clfd_bench.harness.validate import check_env_count, check_thread_invariance
     from clfd_bench.io import atomic_write_json
 
     try:
         jobs = [Job.from_json(text) for text in texts]
         check_env_count("CLFD_THREADS")
+        check_thread_invariance()
     except ValueError as exc:
         print(f"{_PROG}: error: {exc}", file=sys.stderr)
         return 2
@@ -135,7 +136,7 @@ def _lockstep(outcomes_path: str, texts: Sequence[str]) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the job given as the one argument; return the exit code (module docstring)."""
     from clfd_bench.harness.run import Training, checked_run, failure
-    from clfd_bench.harness.validate import check_env_count
+    from clfd_bench.harness.validate import check_env_count, check_thread_invariance
     from clfd_bench.procs import die_with_parent_from_env, keep_parent_priority
 
     die_with_parent_from_env()  # started by a grid: end with it, even if it is SIGKILLed
@@ -157,6 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         check_env_count("CLFD_THREADS")
+        check_thread_invariance()
         training = Training(job.train.config())
     except Exception as exc:
         return failure(exc, job.out, _PROG)

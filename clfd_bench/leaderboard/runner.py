@@ -68,10 +68,11 @@ def validate_plan(specs: list[RunSpec], out: Path) -> None:
             value and where it came from (``clfd-bench`` prints it and exits with code 2).
     """
     from clfd_bench.harness.config import ConfigError
-    from clfd_bench.harness.validate import check_dataset, check_out_dir
+    from clfd_bench.harness.validate import check_dataset, check_out_dir, check_thread_invariance
 
     out = Path(out)
     check_out_dir(out)
+    check_thread_invariance()
     runs_root = (out / "runs").resolve()
     for spec in specs:
         spec.config(GRID_ARG_NAMES)
