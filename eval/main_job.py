@@ -25,6 +25,19 @@ METHODS = ["sg", "ft", "rep", "si", "mas", "hn", "chn"]
 
 
 def main() -> int:
+    """Runs the main job; a user's mistake (no dataset files and no network, no robot model, an
+    unusable --out: :data:`clfd_bench.harness.validate.USER_ERRORS`) is one line and exit 2."""
+    from clfd_bench.harness.validate import USER_ERRORS
+
+    try:
+        return _main()
+    except USER_ERRORS as exc:
+        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"[main job] error: {message}", file=sys.stderr)
+        return 2
+
+
+def _main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="results", help="output directory (default results/)")
     parser.add_argument("--workers", type=int, default=max(1, os.cpu_count() or 1))
