@@ -46,15 +46,19 @@ def test_demo_succeeds_with_every_check_passing(letter_env):
     assert goal["bound"] == pytest.approx(tol["goal_tolerance"]) and goal["unit"] == "m"
 
 
-def test_drift_fails_the_end_check_where_the_shape_checks_let_it_pass():
-    # 'w' (14.8 cm): a drift of 2.2 cm stays within its 2.6 cm Hausdorff tolerance; its end,
-    # 2.2 cm off, is beyond the 1.5 cm end bound.
+@pytest.mark.parametrize("family,demo,end_m", [("drift", 2, 0.0223), ("overrun", 0, 0.0235)])
+def test_the_end_check_alone_fails_drift_and_overrun_on_w(family, demo, end_m):
+    # 'w' (14.8 cm): a drift of 2.2 cm stays within its 2.6 cm Hausdorff tolerance, and the
+    # overrun draws the demo's own 'w' before it runs on 2.35 cm; both end beyond the 1.48 cm
+    # end bound, and only the end check sees it. HN `full` seed 1's 'w' (2.0 cm past,
+    # docs/execution.md "Running on past the end") is the overrun's case: a rule that forgave
+    # running on would pass this must-fail family too.
     env = gym.make("clfd/HelloWorld-w-v3")
-    (rec,) = replay("clfd/HelloWorld-w-v3", [2], "drift", env=env)
+    (rec,) = replay("clfd/HelloWorld-w-v3", [demo], family, env=env)
     env.close()
     assert rec.info["failed"] == ["goal"], rec.info["failed"]
     (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
-    assert goal["value"] > 1.2 * goal["bound"]
+    assert goal["value"] == pytest.approx(end_m, abs=5e-4) and goal["value"] > 1.4 * goal["bound"]
 
 
 def test_a_pen_that_runs_on_past_the_end_fails_the_end_check(letter_env):
@@ -65,18 +69,6 @@ def test_a_pen_that_runs_on_past_the_end_fails_the_end_check(letter_env):
     assert not rec.success and "goal" in rec.info["failed"], rec.info
     (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
     assert goal["value"] > 1.2 * goal["bound"]
-
-
-def test_overrun_is_seen_by_the_end_check_alone_on_w():
-    # 'w' demo 0 run on by 2.35 cm (1.59x its 1.48 cm bound) passes every shape check: HN
-    # `full` seed 1's 'w' (2.0 cm past, docs/execution.md "Running on past the end") is this
-    # case, and a rule that forgave running on would pass this must-fail family too.
-    env = gym.make("clfd/HelloWorld-w-v3")
-    (rec,) = replay("clfd/HelloWorld-w-v3", [0], "overrun", env=env)
-    env.close()
-    assert rec.info["failed"] == ["goal"], rec.info["failed"]
-    (goal,) = [c for c in rec.info["checks"] if c["name"] == "goal"]
-    assert goal["value"] == pytest.approx(0.0235, abs=5e-4) and goal["value"] > 1.5 * goal["bound"]
 
 
 @pytest.mark.parametrize("family", ["shortcut", "rush-wait", "mirror"])
