@@ -5,7 +5,9 @@ Importing the package registers the Gymnasium environments (namespace ``clfd``),
 uses string entry points: nothing heavy (MuJoCo, torch) is imported until an env is made.
 
 Importing it also applies the installation's settings file (:mod:`clfd_bench.settings`):
-``CLFD_DATA_DIR`` and ``MENAGERIE_ROOT`` are found without exports.
+``CLFD_DATA_DIR`` and ``MENAGERIE_ROOT`` are found without exports; and on a Linux machine
+without a display it sets ``MUJOCO_GL=egl`` where unset (:mod:`clfd_bench.headless`), so
+videos render offscreen.
 
 ``clfd_bench.score_predictions(...)`` scores predictions made elsewhere into a run directory
 (:func:`clfd_bench.harness.external.score_predictions`, imported on first use).
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from clfd_bench.headless import default_gl_backend
 from clfd_bench.kernels import pin_thread_invariant_kernels
 from clfd_bench.settings import apply_settings
 from clfd_bench.version import __version__
@@ -24,6 +27,8 @@ pin_thread_invariant_kernels()
 # CLFD_DATA_DIR and MENAGERIE_ROOT from the venv's settings file where not exported
 # (settings.py; `bash run.sh setup` writes it).
 apply_settings()
+# Before anything imports MuJoCo: EGL where no display is and MUJOCO_GL is unset (headless.py).
+default_gl_backend()
 
 __all__ = ["__version__", "score_predictions"]
 
