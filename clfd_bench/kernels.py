@@ -69,6 +69,7 @@ def thread_invariance_wanted() -> bool:
                      "understood: set it to 0 (keep MKL's threads: faster at --threads > 1, "
                      "results may move with the thread count) or 1 (the default), or unset it")
 
+
 #: ``(m, k, n, bias)`` of the products :func:`gemm_thread_probe` computes: MKL's small-``m``,
 #: small-``n`` path that splits ``k`` between threads (the one measured to differ on an AMD
 #: EPYC), a bias-added product, and square and tall ones as the NODEs' layers have.
@@ -169,16 +170,16 @@ def set_threads(threads: int) -> None:
     products thread-dependent and curable, MKL is held to one thread for the calling thread
     (torch resets MKL's threads on every ``set_num_threads``, so call this instead of it).
     torch's own kernels keep ``threads``; only MKL's products lose their parallelism, on CPUs
-    where MKL's strict mode does not hold. Measured on a 2-core AMD EPYC, idle, paper-size
-    HelloWorld models (``clfd-bench bench train --methods hn sg --profile full --threads 2
-    --iterations 10``, 2026-12-07): SG 2.3-2.8 it/s held against 5.2-5.3 with MKL's two
-    threads (one thread: 2.9-3.4), HN 30.8/13.9 against 31.4/19.1 (task 0/1); again with
-    ``CLFD_THREAD_INVARIANT=0`` itself: SG 2.8-3.0 against 4.0-4.3 (one thread 2.7-3.0), HN
-    23.9/18.3 against 29.2/20.7. Where speed at
-    several threads matters more than bit-identity across thread counts, set
-    ``CLFD_THREAD_INVARIANT=0`` (:data:`THREAD_INVARIANT_ENV`); the probe then records
-    ``mkl_single_threaded: false`` and ``identical: false``. At one thread MKL has one thread
-    already, so nothing is probed or held there (predictions from saved runs, evaluation).
+    where MKL's strict mode does not hold. Measured on a 2-core AMD EPYC, paper-size HelloWorld
+    models (``clfd-bench bench train --methods hn sg --profile full --threads 2 --iterations
+    10``, 2026-12-07), with ``CLFD_THREAD_INVARIANT=0``: SG 2.8-3.0 it/s held against 4.0-4.3
+    with MKL's two threads (one thread 2.7-3.0), HN 23.9/18.3 against 29.2/20.7 (task 0/1); an
+    earlier measurement with a patched copy instead of the switch gave SG 2.3-2.8 against
+    5.2-5.3. Where speed at several threads matters more than bit-identity across thread
+    counts, set ``CLFD_THREAD_INVARIANT=0`` (:data:`THREAD_INVARIANT_ENV`); the probe then
+    records ``mkl_single_threaded: false`` and ``identical: false``. At one thread MKL has one
+    thread already, so nothing is probed or held there (predictions from saved runs,
+    evaluation).
     """
     import torch
 

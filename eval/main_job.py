@@ -27,13 +27,12 @@ METHODS = ["sg", "ft", "rep", "si", "mas", "hn", "chn"]
 def main() -> int:
     """Runs the main job; a user's mistake (no dataset files and no network, no robot model, an
     unusable --out: :data:`clfd_bench.harness.validate.USER_ERRORS`) is one line and exit 2."""
-    from clfd_bench.harness.validate import USER_ERRORS
+    from clfd_bench.harness.validate import USER_ERRORS, one_line
 
     try:
         return _main()
     except USER_ERRORS as exc:
-        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        print(f"[main job] error: {message}", file=sys.stderr)
+        print(f"[main job] error: {one_line(exc)}", file=sys.stderr)
         return 2
 
 

@@ -100,18 +100,23 @@ def what_if(roots: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    if argv is None:
-        argv = sys.argv[1:]
-    if argv[:1] == ["--what-if"]:
-        return what_if(argv[1:])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", help="a run directory (runs/<dataset>/<method>/<run>)")
-    p.add_argument("--task", required=True, help="the task (letter or shape) to draw")
+    p.add_argument("run", nargs="?", help="a run directory (runs/<dataset>/<method>/<run>)")
+    p.add_argument("--task", help="the task (letter or shape) to draw")
     p.add_argument("--after", type=int, default=None,
                    help="the run's predictions after learning this task (default: its last)")
     p.add_argument("--demo", type=int, default=0, help="demo j (default 0)")
     p.add_argument("--figure", default=None, help="write the picture here (PNG)")
+    p.add_argument("--what-if", nargs="+", metavar="RESULTS_DIR", default=None,
+                   help="instead: per method, the executions failing the end check that "
+                   "reached the end and ran on, in the runs under these folders")
     args = p.parse_args(argv)
+    if args.what_if is not None:
+        if args.run or args.task:
+            p.error("--what-if takes results folders only, no RUN_DIR or --task")
+        return what_if(args.what_if)
+    if not args.run or not args.task:
+        p.error("RUN_DIR and --task are required (or --what-if RESULTS_DIR ...)")
 
     import clfd_bench  # noqa: F401 - registers the envs
     from clfd_bench.envs.registration import env_id_for

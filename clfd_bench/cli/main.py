@@ -111,13 +111,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         if not _is_user_error(exc):
             raise
+        from clfd_bench.harness.validate import one_line
+
         command = " ".join(
             c for c in (args.command, getattr(args, "bench_command", None),
                         getattr(args, "study_command", None),
                         getattr(args, "pretrained_command", None)) if c
         )
-        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        print(f"clfd-bench {command}: error: {message}", file=sys.stderr)
+        print(f"clfd-bench {command}: error: {one_line(exc)}", file=sys.stderr)
         return 2
 
 

@@ -286,7 +286,7 @@ def failure(exc: BaseException, out: str | os.PathLike[str], prog: str,
     again (its traceback is the report). ``write`` takes the line instead of stderr."""
     from clfd_bench.harness.loop import TrainingDivergedError
     from clfd_bench.harness.protocol import RunMismatchError
-    from clfd_bench.harness.validate import USER_ERRORS
+    from clfd_bench.harness.validate import USER_ERRORS, one_line
     from clfd_bench.runs import RunLockedError
 
     if isinstance(exc, TrainingDivergedError):  # the run failed; its finished tasks stay
@@ -294,8 +294,7 @@ def failure(exc: BaseException, out: str | os.PathLike[str], prog: str,
                 else "no task was finished")
         code, message = 1, f"{exc}; {kept} (another lr needs another --out)"
     elif isinstance(exc, (RunMismatchError, RunLockedError, *USER_ERRORS)):
-        code = 2
-        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        code, message = 2, one_line(exc)
     else:
         raise exc
     line = f"{prog}: error: {message}"

@@ -28,6 +28,7 @@ __all__ = [
     "check_robot_model",
     "check_run_out_dir",
     "check_thread_invariance",
+    "one_line",
 ]
 
 
@@ -211,3 +212,9 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
 USER_ERRORS: tuple[type[BaseException], ...] = _user_errors()
 """Exceptions caused by what a user typed or has on disk: printed as one line, exit 2."""
+
+
+def one_line(exc: BaseException) -> str:
+    """``exc``'s message as the one line a user's mistake is printed as: its non-blank lines,
+    stripped, joined by ``"; "``."""
+    return "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
