@@ -6,6 +6,8 @@ scores predictions made elsewhere, fills the same files but for the checkpoints)
     RUN_DIR/
       results.json                   training (or scoring) results, then the execution fields
       checkpoint.pt                  model + progress (resumes the run)
+      task_snapshot.pt               the task being learned, every few minutes (resumes it
+                                     mid-task); removed once the task's checkpoint is written
       checkpoints/after_task_{i}.pt  with --keep-checkpoints
       predictions/after_task_{i}.npz arrays task_{j} [N, T, D], j <= i
       sim_cache.json                 executed rollouts, per simulator fingerprint
@@ -69,14 +71,15 @@ __all__ = [
 RESULTS_FILE = "results.json"
 CHECKPOINT_FILE = "checkpoint.pt"
 CHECKPOINTS_DIR = "checkpoints"
+TASK_SNAPSHOT_FILE = "task_snapshot.pt"
 PREDICTIONS_DIR = "predictions"
 CACHE_FILE = "sim_cache.json"
 LOG_FILE = "train.log"
 FAILED_FILE = "failed.json"
 LOCK_FILE = ".lock"
 #: What a run directory may hold (the lock last): a folder with other entries is not a run.
-RUN_FILES = (RESULTS_FILE, CHECKPOINT_FILE, CHECKPOINTS_DIR, PREDICTIONS_DIR, CACHE_FILE,
-             LOG_FILE, FAILED_FILE, LOCK_FILE)
+RUN_FILES = (RESULTS_FILE, CHECKPOINT_FILE, CHECKPOINTS_DIR, TASK_SNAPSHOT_FILE,
+             PREDICTIONS_DIR, CACHE_FILE, LOG_FILE, FAILED_FILE, LOCK_FILE)
 #: The keys of ``results.json`` that execution in simulation writes.
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")
 _CACHE_SCHEMA = 3  # 2: summaries carry failure_kind; 3: checks and stopped_early
@@ -225,10 +228,11 @@ class RunDir:
 
     def portable_files(self) -> list[Path]:
         """The files that make up the run, for copying it elsewhere (a shipped bundle):
-        ``results.json``, ``checkpoint.pt``, kept checkpoints, every predictions file,
-        ``sim_cache.json`` and ``train.log``; not the lock, ``failed.json`` or temporary
-        files. Sorted; only those that exist."""
-        fixed = [self.results_path, self.checkpoint_path, self.cache_path, self.log_path]
+        ``results.json``, ``checkpoint.pt``, the task snapshot, kept checkpoints, every
+        predictions file, ``sim_cache.json`` and ``train.log``; not the lock, ``failed.json``
+        or temporary files. Sorted; only those that exist."""
+        fixed = [self.results_path, self.checkpoint_path, self.task_snapshot_path,
+                 self.cache_path, self.log_path]
         kept = sorted((self.path / CHECKPOINTS_DIR).glob("after_task_*.pt"))
         preds = sorted((self.path / PREDICTIONS_DIR).glob("after_task_*.npz"))
         return sorted(p for p in [*fixed, *kept, *preds] if p.is_file())
@@ -383,6 +387,29 @@ class RunDir:
         from clfd_bench.io import sha256_file
 
         return sha256_file(self.checkpoint_path)
+
+    # ------------------------------------------------------------------ task snapshot
+    @property
+    def task_snapshot_path(self) -> Path:
+        """``task_snapshot.pt``: the task being learned, mid-way (bytes of
+        :func:`clfd_bench.harness.checkpoint.encode_snapshot`)."""
+        return self.path / TASK_SNAPSHOT_FILE
+
+    def has_task_snapshot(self) -> bool:
+        return self.task_snapshot_path.is_file()
+
+    def write_task_snapshot(self, data: bytes) -> None:
+        """Writes ``task_snapshot.pt`` (atomically: a kill leaves the old one or the new)."""
+        atomic_write_bytes(self.task_snapshot_path, data)
+
+    def read_task_snapshot(self) -> bytes:
+        """The bytes of ``task_snapshot.pt`` (FileNotFoundError: there is none)."""
+        return self.task_snapshot_path.read_bytes()
+
+    def clear_task_snapshot(self) -> None:
+        """Removes ``task_snapshot.pt`` (its task is finished and checkpointed, or the
+        snapshot is of an older task)."""
+        self.task_snapshot_path.unlink(missing_ok=True)
 
     # ------------------------------------------------------------------ rollout cache
     def load_cache(self, fingerprint: str) -> dict[str, dict[str, Any]]:

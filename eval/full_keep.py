@@ -27,7 +27,11 @@ run's four networks about 100 MB (refused, said in one line). Stop the run first
 killed run keeps its last finished task); a checkpoint written while it is archived would not
 match its results. ``restore`` extracts a partial run with its checkpoint and does not execute
 it again: the grid resumes it, trains what is left and executes it. Once it is done, ``save``
-archives it again without its checkpoint, in place of the partial archive.
+archives it again without its checkpoint, in place of the partial archive. A run's
+``task_snapshot.pt`` (the task being learned, with the optimiser's moments: about three times
+its checkpoint, over 100 MB for a RoboTasks run) is never kept: it resumes the task mid-way
+on the machine that wrote it, which sessions on a machine that lives on use (a killed run
+continues there from its last snapshot, at most ten minutes back).
 
 ``save`` archives every run under OUT (``OUT/<dataset>/runs/<dataset>/<method>/<run>``, as
 ``eval/full_runs.sh`` lays them out) that is done (every task trained and executed by the
@@ -52,10 +56,10 @@ from pathlib import Path
 from clfd_bench.execution.fingerprint import sim_fingerprint
 from clfd_bench.io import atomic_write_json, sha256_file
 from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
-from clfd_bench.runs import RunDir, find_runs
+from clfd_bench.runs import TASK_SNAPSHOT_FILE, RunDir, find_runs
 
 MANIFEST = "MANIFEST.json"
-LEFT_OUT = ("checkpoint.pt", "checkpoints")
+LEFT_OUT = ("checkpoint.pt", "checkpoints", TASK_SNAPSHOT_FILE)
 
 
 def _manifest(keep: Path) -> dict:
@@ -92,7 +96,8 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
                        else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
                 print(f"  {key}: not kept (unfinished, {tasks} tasks learned; {why})")
                 continue
-            sha = _archive(run, keep, key, left_out=("checkpoints",))  # checkpoint.pt goes in
+            # checkpoint.pt goes in
+            sha = _archive(run, keep, key, left_out=("checkpoints", TASK_SNAPSHOT_FILE))
             manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
         else:
             print(f"  {key}: not kept ({state.reason or state.state})")

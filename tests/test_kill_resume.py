@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from run_checks import cli, comparable, finish, kill_when
+from run_checks import RUN_TIMING, cli, comparable, finish, kill_when
 
 from clfd_bench.runs import RunDir
 
@@ -93,6 +93,40 @@ def test_kill_while_executing_the_last_task_then_resume(reference, tmp_path):
     assert status.state == "partial" and "executed" in status.reason
     finish(cli(*TRAIN, "--out", str(run.path)))
     assert _results(run.path) == reference
+
+
+def test_kill_in_the_middle_of_a_task_resumes_from_its_snapshot(tmp_path):
+    """Killed while the second task learns, with a task snapshot written every iteration: the
+    resumed run starts at the snapshot's iteration (not at the task's start) and ends with the
+    uninterrupted run's results and predictions, bit for bit."""
+    slow = [*TRAIN, "--no-sim", "--set", "iterations=1500"]
+    finish(cli(*slow, "--out", str(tmp_path / "ref"), "--snapshot-every", "0"))
+    run = RunDir(tmp_path / "run")
+    proc = cli(*slow, "--out", str(run.path), "--snapshot-every", "0.000001")
+
+    def in_second_task() -> bool:
+        try:
+            return (run.has_task_snapshot() and run.has_checkpoint()
+                    and run.task_snapshot_path.stat().st_mtime > run.checkpoint_mtime() + 0.3)
+        except FileNotFoundError:  # replaced while looked at
+            return False
+
+    kill_when(proc, in_second_task)
+    assert run.has_task_snapshot()
+    out = finish(cli(*[a for a in slow if a != "--quiet"], "--out", str(run.path)))
+    resumed = [line for line in out.splitlines() if "from its snapshot" in line]
+    assert len(resumed) == 1 and "in task 1 (e) from its snapshot: position iteration" in \
+        resumed[0], out
+    iteration = int(resumed[0].rsplit(" ", 1)[1])
+    assert 0 < iteration < 1500
+    (record,) = run.load_results()["provenance"]["resumed_in_task"]
+    assert record["task"] == 1 and record["parts"] == {"position": f"iteration {iteration}"}
+    assert not run.has_task_snapshot()
+    ignore = RUN_TIMING | {"resumed_in_task"}
+    assert comparable(run.load_results(), ignore) == comparable(
+        RunDir(tmp_path / "ref").load_results(), ignore)
+    ref, got = RunDir(tmp_path / "ref").load_predictions(1), run.load_predictions(1)
+    assert all(np.array_equal(ref[j], got[j]) for j in ref)
 
 
 def test_a_second_trainer_of_the_same_run_is_refused(tmp_path):

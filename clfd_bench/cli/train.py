@@ -18,6 +18,7 @@ the tasks finished before stay in ``--out``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 
@@ -61,6 +62,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "fastest on one thread; run several runs side by side instead)")
     p.add_argument("--keep-checkpoints", action="store_true",
                    help="keep a checkpoint after every task (checkpoints/after_task_i.pt)")
+    p.add_argument("--snapshot-every", type=_seconds, default=None, metavar="SECONDS",
+                   help="write the task being learned to task_snapshot.pt every SECONDS, so "
+                        "that a killed run resumes in the middle of its task (default 600; "
+                        "0: only after each finished task)")
     p.add_argument("--show-config", action="store_true",
                    help="print the resolved configuration as JSON and exit")
     p.add_argument("--quiet", action="store_true", help="no per-task summary lines")
@@ -69,6 +74,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--sim-workers", type=int, default=1,
                    help="processes executing rollouts in parallel (default 1)")
     p.set_defaults(func=_run)
+
+
+def _seconds(text: str) -> float:
+    """``--snapshot-every``'s value: a finite number of seconds >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds >= 0")
+    return value
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -98,6 +114,9 @@ def _run(args: argparse.Namespace) -> int:
     if not args.out:
         print("clfd-bench train: error: --out DIR is required", file=sys.stderr)
         return 2
-    return checked_run(Training(config, args.threads, args.keep_checkpoints), args.out,
+    training = Training(config, args.threads, args.keep_checkpoints)
+    if args.snapshot_every is not None:
+        training = dataclasses.replace(training, snapshot_every=args.snapshot_every)
+    return checked_run(training, args.out,
                        sim=not args.no_sim, sim_workers=args.sim_workers,
                        log=None if args.quiet else print, prog="clfd-bench train")

@@ -4,6 +4,10 @@ A checkpoint is the bytes of ``torch.save({"format", "header": <JSON text>, "ten
 {name: tensor}})``. Decoding never unpickles code, so a shared checkpoint cannot run
 anything. The header carries the plain data (config, progress, per-task normalisers). The
 run directory (:class:`clfd_bench.runs.RunDir`) stores and reads the bytes.
+
+A task snapshot (:func:`encode_snapshot`) is the state of a task being learned (weights,
+optimiser, schedule, RNGs at an iteration): nested dicts and lists of tensors and plain
+values, loaded the same safe way.
 """
 
 from __future__ import annotations
@@ -17,9 +21,18 @@ from typing import Any
 import torch
 from torch import Tensor
 
-__all__ = ["CHECKPOINT_FORMAT", "CheckpointError", "decode_checkpoint", "encode_checkpoint"]
+__all__ = [
+    "CHECKPOINT_FORMAT",
+    "SNAPSHOT_FORMAT",
+    "CheckpointError",
+    "decode_checkpoint",
+    "decode_snapshot",
+    "encode_checkpoint",
+    "encode_snapshot",
+]
 
 CHECKPOINT_FORMAT = "clfd-bench-checkpoint/1"
+SNAPSHOT_FORMAT = "clfd-bench-task-snapshot/1"
 
 
 class CheckpointError(ValueError):
@@ -59,3 +72,28 @@ def decode_checkpoint(data: bytes, source: str = "checkpoint"
                               f"{CHECKPOINT_FORMAT}); delete it to train the run again from "
                               "its first task")
     return json.loads(obj["header"]), dict(obj["tensors"])
+
+
+def encode_snapshot(body: Mapping[str, Any]) -> bytes:
+    """The bytes of a task snapshot: ``body`` holds dicts, lists, tensors and plain values."""
+    buf = io.BytesIO()
+    torch.save({"format": SNAPSHOT_FORMAT, "body": dict(body)}, buf)
+    return buf.getvalue()
+
+
+def decode_snapshot(data: bytes, source: str = "task snapshot") -> dict[str, Any]:
+    """The body of bytes written by :func:`encode_snapshot`.
+
+    Raises:
+        CheckpointError: the bytes are not a clfd-bench task snapshot (``source`` names them).
+    """
+    try:
+        obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+    except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
+        reason = str(exc).splitlines()[0].split(". ")[0] if str(exc) else type(exc).__name__
+        obj = reason
+    if not isinstance(obj, dict) or obj.get("format") != SNAPSHOT_FORMAT:
+        why = obj if isinstance(obj, str) else f"not format {SNAPSHOT_FORMAT}"
+        raise CheckpointError(f"{source} is not a readable clfd-bench task snapshot ({why}); "
+                              "delete it to learn its task again from the task's start")
+    return obj["body"]

@@ -17,6 +17,15 @@ One iteration::
 seed or task order): each keeps its own batches, optimiser, stop rule, hooks and global RNG
 state; the task losses of the runs whose batches stack are computed in one pass.
 
+**Task snapshots.** A paper-size task takes hours; :func:`train_tasks` can hand, every
+``snapshot_every`` seconds, each run's whole loop state to a callback (:func:`lane_snapshot`:
+weights, the method's :meth:`~clfd_bench.methods.base.Method.step_state`, optimiser,
+schedule, stop rule, batch generator and global RNG, the iteration), and a
+:class:`TaskRun` given such a snapshot (``resume``) continues from it. The task's start is
+replayed first (``add_task`` and ``on_task_start`` on the task's starting weights, the RNGs
+seeded as for a fresh start), then the snapshot is loaded, so the task ends bit for bit
+where the uninterrupted one does.
+
 With ``stop_window > 0`` (:mod:`clfd_bench.learning.stop_rule`) ``iterations`` is a cap: the
 task ends once its smoothed loss stops improving; :class:`TrainStats` records the iterations
 it ran.
@@ -31,9 +40,12 @@ Adam's state is per parameter, so one optimiser is the same thing).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import Tensor
@@ -57,6 +69,7 @@ __all__ = [
     "TrainingDivergedError",
     "TrainStats",
     "batch_spec",
+    "finished_snapshot",
     "lr_factor",
     "solver_blew_up",
     "solver_spec",
@@ -163,8 +176,10 @@ def stop_rule(cfg: PartConfig) -> StopRule | None:
 @dataclass
 class TaskRun:
     """One run's share of a lockstep training (:func:`train_tasks`): the arguments of
-    :func:`train_task`, and the global torch RNG state the run's hooks see (None: the
-    current one; runs trained together each keep their own)."""
+    :func:`train_task`, the global torch RNG state the run's hooks see (None: the current
+    one; runs trained together each keep their own), and ``resume``: a snapshot of this task
+    to continue from (``train_tasks``' ``on_snapshot``, or :func:`finished_snapshot`), given
+    to a run whose method, data, generator and RNG state are those of the task's start."""
 
     method: Method
     task: int
@@ -173,6 +188,20 @@ class TaskRun:
     generator: torch.Generator
     desc: str = ""
     rng_state: torch.Tensor | None = None
+    resume: dict[str, Any] | None = None
+
+
+def finished_snapshot(run: TaskRun, stats: TrainStats) -> dict[str, Any]:
+    """The snapshot of a run whose task is learned (``stats``, from :func:`train_tasks`):
+    given back as ``resume``, its task is not trained again and ``stats`` is its result.
+    The tensors are copies (the method may learn on)."""
+    method = run.method
+    return {"finished": True,
+            "method": {k: v.detach().clone() for k, v in method.state_dict().items()},
+            "step_state": method.step_state(),
+            "rng": (run.rng_state if run.rng_state is not None
+                    else torch.get_rng_state()).clone(),
+            "stats": dataclasses.asdict(stats)}
 
 
 class _Lane:
@@ -181,9 +210,18 @@ class _Lane:
 
     def __init__(self, run: TaskRun):
         self.run, self.cfg = run, run.cfg
-        self.start = time.perf_counter()
+        resume = run.resume or {}
+        now = time.perf_counter()
+        self.start = now - float(resume.get("seconds", 0.0))
         self.rng = run.rng_state if run.rng_state is not None else torch.get_rng_state()
         self.spec, self.solver = batch_spec(run.cfg), solver_spec(run.cfg)
+        self.samplers: dict[int, BatchSampler] = {}
+        self.error: TrainingDivergedError | None = None
+        self.stats: TrainStats | None = None
+        self.it = 0  # the next iteration
+        if resume.get("finished"):
+            self._load_finished(resume)
+            return
         with self.own_rng():
             run.method.train()
             run.method.on_task_start(run.task, run.data)
@@ -195,14 +233,60 @@ class _Lane:
         else:
             factor = lambda it: lr_factor(cfg, it) * stop.lr_scale  # noqa: E731
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, factor)
-        self.samplers: dict[int, BatchSampler] = {}
         self.loss_value = float("nan")
-        self.bar = progress(total=cfg.iterations, desc=run.desc or f"task {run.task}")
-        self.loop_start = time.perf_counter()
+        if resume:
+            self._load(resume)
+        self.bar = progress(total=cfg.iterations, desc=run.desc or f"task {run.task}",
+                            initial=self.it)
+        self.loop_start = time.perf_counter() - float(resume.get("loop_seconds", 0.0))
         self.done = cfg.iterations
         self.finished = False
-        self.error: TrainingDivergedError | None = None
-        self.stats: TrainStats | None = None
+
+    def _load(self, snap: dict[str, Any]) -> None:
+        """Continue from a snapshot of an unfinished task (after ``on_task_start``)."""
+        run = self.run
+        run.method.load_state_dict(snap["method"], strict=True)
+        run.method.load_step_state(snap["step_state"])
+        self.optimizer.load_state_dict(snap["optimizer"])
+        self.schedule.load_state_dict(snap["schedule"])
+        if (self.stop is None) != (snap["stop"] is None):
+            raise ValueError("the task snapshot was taken with another stop_window setting")
+        if self.stop is not None:
+            self.stop.load_state(snap["stop"])
+        run.generator.set_state(snap["generator"])
+        self.rng = snap["rng"]
+        self.loss_value = float(snap["loss_value"])
+        self.it = int(snap["iteration"])
+
+    def _load_finished(self, snap: dict[str, Any]) -> None:
+        """Take a learned task's snapshot (:func:`finished_snapshot`) as this lane's end."""
+        method = self.run.method
+        method.load_state_dict(snap["method"], strict=True)
+        method.load_step_state(snap["step_state"])
+        method.eval()
+        self.rng = snap["rng"]
+        self.stats = TrainStats(**snap["stats"])
+        self.done = self.it = self.stats.iterations
+        self.finished = True
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """This lane's state between two iterations (None: it failed): what ``resume``
+        takes. Unfinished lanes' tensors are the live ones: encode them before the next
+        iteration."""
+        if self.error is not None:
+            return None
+        if self.finished:
+            run = dataclasses.replace(self.run, rng_state=self.rng)
+            return finished_snapshot(run, self.stats)
+        now = time.perf_counter()
+        method = self.run.method
+        return {"finished": False, "iteration": self.it, "method": method.state_dict(),
+                "step_state": method.step_state(), "optimizer": self.optimizer.state_dict(),
+                "schedule": self.schedule.state_dict(),
+                "stop": None if self.stop is None else self.stop.state(),
+                "generator": self.run.generator.get_state(), "rng": self.rng,
+                "loss_value": self.loss_value, "seconds": now - self.start,
+                "loop_seconds": now - self.loop_start}
 
     def own_rng(self):
         """A context in which the global torch RNG is this run's."""
@@ -280,7 +364,7 @@ class _OwnRng:
         torch.set_rng_state(self.saved)
 
 
-def _losses(lanes: list[_Lane], batches: list[tuple[Field, Tensor, Tensor]], it: int
+def _losses(lanes: list[_Lane], batches: list[tuple[Field, Tensor, Tensor]]
             ) -> list[Tensor | None]:
     """The task loss of every lane's batch: lanes whose batches stack (same
     :func:`stack_key`) in one pass, the others alone as :func:`trajectory_loss`; None for a
@@ -305,11 +389,13 @@ def _losses(lanes: list[_Lane], batches: list[tuple[Field, Tensor, Tensor]], it:
         except (FloatingPointError, AssertionError, RuntimeError) as exc:
             if not solver_blew_up(exc):
                 raise
-            lanes[i].fail(it, f"the ODE solver failed ({exc})", exc)
+            lanes[i].fail(lanes[i].it, f"the ODE solver failed ({exc})", exc)
     return losses
 
 
-def train_tasks(runs: list[TaskRun]) -> list[TrainStats | TrainingDivergedError]:
+def train_tasks(runs: list[TaskRun], *, snapshot_every: float = 0.0,
+                on_snapshot: Callable[[list[dict[str, Any] | None]], None] | None = None,
+                ) -> list[TrainStats | TrainingDivergedError]:
     """Learn several runs' tasks in lockstep: the same loop as :func:`train_task` for each
     run, with the task losses of the runs whose batches stack computed in one pass and
     back-propagated together (:func:`~clfd_bench.learning.objective.stacked_trajectory_losses`;
@@ -318,28 +404,40 @@ def train_tasks(runs: list[TaskRun]) -> list[TrainStats | TrainingDivergedError]
     optimiser, schedule and stop rule (a run that stops leaves the others going), its hooks,
     run with its own global RNG state. Each run's result is :func:`train_task`'s for it
     alone, bit for bit (the stacked pass is used only where it is exact: see
-    :func:`~clfd_bench.learning.objective.stacked_trajectory_losses`).
+    :func:`~clfd_bench.learning.objective.stacked_trajectory_losses`). Runs resumed from
+    snapshots may be at different iterations; each keeps its own count.
+
+    Args:
+        snapshot_every: seconds between two calls of ``on_snapshot`` (0: never).
+        on_snapshot: called between two iterations with every run's snapshot (None for a
+            run that failed; see :class:`TaskRun`'s ``resume``), while a run is unfinished.
+            It must encode the tensors before it returns.
 
     Returns:
         per run, its :class:`TrainStats`, or the :class:`TrainingDivergedError` that ended it
         (the other runs go on).
     """
     lanes = [_Lane(run) for run in runs]
-    it = 0
+    last_snapshot = time.perf_counter()
     while True:
         active = [lane for lane in lanes if not lane.finished]
         if not active:
             break
-        batches = [lane.batch(it) for lane in active]
-        losses = _losses(active, batches, it)
+        batches = [lane.batch(lane.it) for lane in active]
+        losses = _losses(active, batches)
         live = [(lane, loss) for lane, loss in zip(active, losses, strict=True)
                 if loss is not None]
         if live:
             total = live[0][1] if len(live) == 1 else torch.stack([v for _, v in live]).sum()
             total.backward()
         for lane, loss in live:
-            lane.step(it, loss)
-        it += 1
+            lane.step(lane.it, loss)
+            lane.it += 1
+        if (on_snapshot is not None and snapshot_every > 0
+                and time.perf_counter() - last_snapshot >= snapshot_every
+                and any(not lane.finished for lane in lanes)):
+            on_snapshot([lane.snapshot() for lane in lanes])
+            last_snapshot = time.perf_counter()
     for run, lane in zip(runs, lanes, strict=True):
         run.rng_state = lane.rng
     return [lane.error if lane.error is not None else lane.stats for lane in lanes]

@@ -13,11 +13,21 @@
 A run directory that already holds a checkpoint of the same configuration resumes after its
 last finished task and ends with the same results as an uninterrupted run; one with a
 different configuration is refused.
+
+**Within a task.** While a task is learned, every ``snapshot_every`` seconds (default
+:data:`SNAPSHOT_EVERY_S`) and after each of its parts, the run writes ``task_snapshot.pt``
+(the loop state of :func:`clfd_bench.harness.loop.train_tasks`, the parts already learned,
+the task's CPU time so far); the task's checkpoint removes it. A run killed mid-task resumes
+from it, after its last finished task has been restored, and ends bit for bit as the
+uninterrupted run (on the same CPU and kernels). A paper-size task of hours thus loses at
+most minutes when its machine goes. A snapshot of another task than the next one (a kill
+between the checkpoint and the snapshot's removal) is stale and removed.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -29,7 +39,12 @@ import torch
 
 from clfd_bench.data import load_dataset
 from clfd_bench.data.types import Dataset
-from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
+from clfd_bench.harness.checkpoint import (
+    decode_checkpoint,
+    decode_snapshot,
+    encode_checkpoint,
+    encode_snapshot,
+)
 from clfd_bench.harness.config import PartConfig
 from clfd_bench.harness.evaluation import (
     SCHEMA_VERSION,
@@ -41,7 +56,14 @@ from clfd_bench.harness.evaluation import (
     task_errors,
 )
 from clfd_bench.harness.learner import Learner
-from clfd_bench.harness.loop import TaskRun, TrainingDivergedError, TrainStats, train_tasks, warm_up
+from clfd_bench.harness.loop import (
+    TaskRun,
+    TrainingDivergedError,
+    TrainStats,
+    finished_snapshot,
+    train_tasks,
+    warm_up,
+)
 from clfd_bench.harness.run_config import RunConfig
 from clfd_bench.io import json_safe
 from clfd_bench.kernels import set_threads
@@ -49,6 +71,7 @@ from clfd_bench.runs import CHECKPOINT_FILE, RunDir
 
 __all__ = [
     "SCHEMA_VERSION",
+    "SNAPSHOT_EVERY_S",
     "RunMismatchError",
     "TrainingJob",
     "available_cores",
@@ -61,6 +84,11 @@ __all__ = [
 
 class RunMismatchError(RuntimeError):
     """The output directory holds a run with a different configuration."""
+
+
+SNAPSHOT_EVERY_S = 600.0
+"""Default seconds between two task snapshots: a paper-size RoboTasks snapshot (weights and
+Adam's moments) takes about a second to write."""
 
 
 def available_cores() -> int:
@@ -205,6 +233,8 @@ class TrainingJob:
         config: the resolved run configuration. out_dir: the run directory. log: where its
             one-line summaries go (None: silent). after_task: called with the task index
             after each of its finished tasks. keep_checkpoints: keep every task's checkpoint.
+            snapshot_every: seconds between two task snapshots (0: none; None:
+            :data:`SNAPSHOT_EVERY_S`; module docstring).
     """
 
     config: RunConfig
@@ -212,6 +242,7 @@ class TrainingJob:
     log: Callable[[str], None] | None = print
     after_task: Callable[[int], Any] | None = None
     keep_checkpoints: bool = False
+    snapshot_every: float | None = None
 
 
 class _ProtocolRun:
@@ -291,6 +322,60 @@ class _ProtocolRun:
         self.state, self.done = state, done
         self.label = f"{config.method}/{config.dataset}"
         self._times: dict[str, float] = {}
+        self.snapshot_parts: dict[str, dict[str, Any]] = {}  # task `done`'s, by part
+        self.snapshot_cpu_s = 0.0  # the CPU time of task `done` before this process
+        provenance.setdefault("resumed_in_task", [])
+        if done < n_tasks:
+            self._read_snapshot()
+
+    def _read_snapshot(self) -> None:
+        """Take up ``task_snapshot.pt`` if it is of task ``done`` (a stale one is removed)."""
+        run, done = self.run, self.done
+        if not run.has_task_snapshot():
+            return
+        body = decode_snapshot(run.read_task_snapshot(), str(run.task_snapshot_path))
+        if body.get("task") != done:
+            if self.log:
+                self.log(f"{run.task_snapshot_path} is of task {body.get('task')}, not of "
+                         f"the next task {done}: removed")
+            run.clear_task_snapshot()
+            return
+        diff = _diff(_config_without_tasks(json.loads(body["config"])),
+                     _config_without_tasks(self.config.to_dict()))
+        if diff:
+            raise RunMismatchError(
+                f"{run.task_snapshot_path} is of a run with a different configuration "
+                f"({'; '.join(diff)}); use another --out directory or delete this one")
+        self.snapshot_parts = dict(body["parts"])
+        self.snapshot_cpu_s = float(body["cpu_s"])
+        where = {kind: ("learned" if p["finished"] else f"iteration {p['iteration']}")
+                 for kind, p in self.snapshot_parts.items()}
+        self.provenance["resumed_in_task"].append(
+            {"task": done, "parts": where, "cpu": body.get("cpu")})
+        if self.log:
+            parts = ", ".join(f"{kind} {w}" for kind, w in where.items())
+            self.log(f"resuming {run.path} in task {done} ({self.tasks[done].name}) from its "
+                     f"snapshot: {parts}")
+            moved = _cpu_change([body.get("cpu")], self.provenance["cpu"])
+            if moved:
+                self.log(f"warning: task {done} was begun on another CPU or kernel setting "
+                         f"({moved}); it will end on this one's float kernels")
+
+    def write_snapshot(self, i: int, parts: dict[str, dict[str, Any]], cpu_s: float) -> None:
+        """Write task ``i``'s snapshot: ``parts`` (the loop's, by part) over the parts already
+        learned; ``cpu_s``: this process's CPU time on the task so far."""
+        body = {"task": i, "config": json.dumps(json_safe(self.config.to_dict())),
+                "cpu_s": self.snapshot_cpu_s + cpu_s, "cpu": self.provenance["cpu"],
+                "parts": self.snapshot_parts | parts}
+        self.run.write_task_snapshot(encode_snapshot(body))
+
+    def part_learned(self, i: int, unit: TaskRun, kind: str, stats: TrainStats,
+                     cpu_s: float) -> None:
+        """Part ``kind`` learned task ``i`` (``unit``): kept for the task's snapshot, which is
+        written at once when another part of the task is still to learn."""
+        self.snapshot_parts[kind] = finished_snapshot(unit, stats)
+        if set(self.snapshot_parts) != set(self.learner.parts):
+            self.write_snapshot(i, {}, cpu_s)
 
     def part_run(self, i: int, kind: str) -> TaskRun:
         """Task ``i`` added to part ``kind``'s model, with the RNGs seeded from
@@ -301,8 +386,10 @@ class _ProtocolRun:
         torch.manual_seed(seed_i)
         generator = torch.Generator().manual_seed(seed_i + 1)
         data = part.add_next(i, task)
+        resume = self.snapshot_parts.get(kind) if i == self.done else None
         return TaskRun(part.method, i, data, part.cfg, generator,
-                       f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state())
+                       f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state(),
+                       resume)
 
     def record_part(self, kind: str, stats: TrainStats, share: int = 1) -> None:
         """What training part ``kind`` on the current task took; ``share``: the runs it was
@@ -329,6 +416,7 @@ class _ProtocolRun:
         """
         state, learner, tasks, n_tasks = self.state, self.learner, self.tasks, self.n_tasks
         task = tasks[i]
+        cpu_s += self.snapshot_cpu_s
         self.provenance["cpu_by_task"].append(self.provenance["cpu"])
         self.provenance["lockstep_by_task"].append(lockstep)
         state["train_time_s"].append(sum(self._times.values()))
@@ -355,6 +443,8 @@ class _ProtocolRun:
                             "state": state, "provenance": self.provenance})
         self.run.write_checkpoint(encode_checkpoint(header, tensors),
                                   keep_as=i if self.job.keep_checkpoints else None)
+        self.run.clear_task_snapshot()
+        self.snapshot_parts, self.snapshot_cpu_s = {}, 0.0
         results = _results(self.config, self.ds, state, complete=i == n_tasks - 1,
                            provenance=self.provenance)
         self.run.write_training_results(results)
@@ -411,16 +501,32 @@ def run_trainings(jobs: Sequence[TrainingJob], *, threads: int | None = None
         if not active:
             continue
         cpu_start = time.process_time()
+
+        def cpu_share(n: int = len(active), start: float = cpu_start) -> float:
+            return (time.process_time() - start) / max(1, n)
+
         for kind in dict.fromkeys(kind for k in active for kind in runs[k].learner.parts):
             members = [k for k in active if alive(k) and kind in runs[k].learner.parts]
             units = [runs[k].part_run(i, kind) for k in members]
-            for k, result in zip(members, train_tasks(units), strict=True):
+
+            def on_snapshot(snaps: list[dict[str, Any] | None], members: list[int] = members,
+                            kind: str = kind, i: int = i) -> None:
+                for k, snap in zip(members, snaps, strict=True):
+                    if snap is not None and alive(k):
+                        runs[k].write_snapshot(i, {kind: snap}, cpu_share())
+
+            every = min((SNAPSHOT_EVERY_S if jobs[k].snapshot_every is None
+                         else jobs[k].snapshot_every for k in members), default=0.0)
+            results = train_tasks(units, snapshot_every=every, on_snapshot=on_snapshot)
+            for k, unit, result in zip(members, units, results, strict=True):
                 if isinstance(result, TrainingDivergedError):
                     outcome[k] = result
                 else:
                     runs[k].record_part(kind, result, share=len(members))
+                    if every > 0:
+                        runs[k].part_learned(i, unit, kind, result, cpu_share())
         trained = [k for k in active if alive(k)]
-        cpu_s = (time.process_time() - cpu_start) / max(1, len(active))
+        cpu_s = cpu_share()
         for k in trained:
             try:
                 runs[k].finish_task(i, cpu_s, len(active))
@@ -440,6 +546,7 @@ def run_training(
     log: Callable[[str], None] | None = print,
     after_task: Callable[[int], None] | None = None,
     keep_checkpoints: bool = False,
+    snapshot_every: float | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) the sequential protocol and return the results dict.
 
@@ -451,13 +558,16 @@ def run_training(
         after_task: called with the task index after each finished task (after all files
             are written); an exception from it stops the run, which can then be resumed.
         keep_checkpoints: also keep ``checkpoints/after_task_{i}.pt`` for every task.
+        snapshot_every: seconds between two snapshots of the task being learned (0: none;
+            None: :data:`SNAPSHOT_EVERY_S`).
 
     Raises:
         RunMismatchError: ``out_dir`` holds a run with a different configuration.
         TrainingDivergedError: training diverged (the tasks finished before stay).
     """
     (result,) = run_trainings(
-        [TrainingJob(config, out_dir, log, after_task, keep_checkpoints)], threads=threads)
+        [TrainingJob(config, out_dir, log, after_task, keep_checkpoints, snapshot_every)],
+        threads=threads)
     if isinstance(result, Exception):
         raise result
     return result

@@ -118,12 +118,14 @@ class Training:
     Attributes:
         config: the resolved configuration. threads: torch CPU threads (None: the default,
             :func:`~clfd_bench.harness.protocol.default_threads`). keep_checkpoints: keep a
-            checkpoint after every task.
+            checkpoint after every task. snapshot_every: seconds between two snapshots of
+            the task being learned (0: none; None: the protocol's ``SNAPSHOT_EVERY_S``).
     """
 
     config: RunConfig
     threads: int | None = None
     keep_checkpoints: bool = False
+    snapshot_every: float | None = None
 
     def owner(self, out: Path) -> str:
         c = self.config
@@ -135,7 +137,8 @@ class Training:
         from clfd_bench.harness.protocol import run_training
 
         return run_training(self.config, out, threads=self.threads, log=log,
-                            keep_checkpoints=self.keep_checkpoints, after_task=after_task)
+                            keep_checkpoints=self.keep_checkpoints, after_task=after_task,
+                            snapshot_every=self.snapshot_every)
 
 
 def execute_after_task(out: str | os.PathLike[str], workers: int, log: Log | None
@@ -247,7 +250,7 @@ def run_lockstep(
                 continue
             hook = execute_after_task(out, sim_workers, logs[k]) if sim else None
             jobs.append(TrainingJob(training.config, directory.path, logs[k], hook,
-                                    training.keep_checkpoints))
+                                    training.keep_checkpoints, training.snapshot_every))
             members.append(k)
         threads = trainings[0].threads if trainings else None
         for k, result in zip(members, run_trainings(jobs, threads=threads), strict=True):

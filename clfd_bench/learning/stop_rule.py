@@ -50,6 +50,19 @@ class StopRule:
         self._count = 0
         self._decays_used = 0
 
+    def state(self) -> dict[str, float | int | None]:
+        """Everything :meth:`update` has accumulated, as plain data (a task's snapshot)."""
+        return {"lr_scale": self.lr_scale, "stopped_at": self.stopped_at, "best": self.best,
+                "sum": self._sum, "count": self._count, "decays_used": self._decays_used}
+
+    def load_state(self, state: dict[str, float | int | None]) -> None:
+        """Continue from :meth:`state`'s ``state`` (same window, rel, decays and start)."""
+        self.lr_scale = float(state["lr_scale"])
+        self.stopped_at = None if state["stopped_at"] is None else int(state["stopped_at"])
+        self.best = None if state["best"] is None else float(state["best"])
+        self._sum, self._count = float(state["sum"]), int(state["count"])
+        self._decays_used = int(state["decays_used"])
+
     def update(self, iteration: int, loss: float) -> bool:
         """Record the loss of ``iteration`` (0-based, called once per iteration in order);
         True when training should stop after it (then :attr:`stopped_at` is

@@ -87,6 +87,12 @@ class AveragedGEM(DemoMemory, ConditionedNodeMethod):
         self.projections = 0
         self._samplers.clear()
 
+    def step_state(self) -> dict[str, bool | int | float]:
+        return {"projections": self.projections}
+
+    def load_step_state(self, state: dict[str, bool | int | float]) -> None:
+        self.projections = int(state["projections"])
+
     def on_task_end(self, task: int, data: TaskData) -> None:
         n = data.demos.shape[0]
         keep = min(self.cfg.extra("agem_memory"), n)

@@ -152,6 +152,22 @@ class Method(nn.Module):
     def after_step(self) -> None:
         """After each optimiser step (SI's running importance)."""
 
+    # -- a task's snapshot -----------------------------------------------------------
+    def step_state(self) -> dict[str, bool | int | float]:
+        """What the hooks keep between the iterations of a task outside :meth:`state_dict`
+        (plain values), for a task snapshot: a run killed in the middle of a task resumes
+        from the snapshot's weights, optimiser and this, after :meth:`on_task_start` has run
+        again on the task's starting state, and must end bit for bit where it would have
+        (``tests/test_task_snapshot.py`` checks every registered method). State that
+        :meth:`on_task_start` rebuilds from the starting weights, or that lives in buffers,
+        needs nothing here."""
+        return {}
+
+    def load_step_state(self, state: dict[str, bool | int | float]) -> None:
+        """Restore :meth:`step_state`'s ``state`` (after :meth:`on_task_start`)."""
+        if state:
+            raise ValueError(f"method {self.name!r} keeps no step state, got {sorted(state)}")
+
     # -- accounting -----------------------------------------------------------------
     def num_params(self) -> int:
         """Parameters the model must keep to reproduce every learned task (MS, FS)."""

@@ -135,6 +135,12 @@ class PackNet(ConditionedNodeMethod):
                 owner[owner == FREE] = task  # every free weight is task's until pruning
         self._task, self._iteration, self._pruned = task, -1, False
 
+    def step_state(self) -> dict[str, bool | int | float]:
+        return {"iteration": self._iteration, "pruned": self._pruned}
+
+    def load_step_state(self, state: dict[str, bool | int | float]) -> None:
+        self._iteration, self._pruned = int(state["iteration"]), bool(state["pruned"])
+
     def before_step(self, ctx: StepContext) -> None:
         self._iteration = ctx.iteration
         with torch.no_grad():
