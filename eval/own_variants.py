@@ -1,10 +1,11 @@
-"""Wrong and right trajectories beyond the replay families, for the RoboTasks9 scenes.
+"""Wrong and right trajectories beyond the replay families, for the RoboTasks(9) scenes.
 
     python eval/own_variants.py [ENV ...]      # default: every env with variants
 
 Each variant (`clfd_bench.execution.task_variants`) is built from every demo and executed with
 the motion-limit checks on; the table says how many of the 9 succeed and why the others failed.
-"expect" is what an observer would say. Takes ~15 s per env on one core.
+"expect" is what an observer would say. Every scene gets the nine `NEARBY` edits first (5 mm,
+3 degrees, another clock; expected to succeed). About 80 s per env on one core.
 """
 
 from __future__ import annotations

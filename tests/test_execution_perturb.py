@@ -191,3 +191,50 @@ def test_confusion_table_flags_disagreements():
     assert table["clfd/A-v1"]["mirror"]["not_applicable"] == 3
     assert "| A-v1 | 20/20 | 1/20 (3 n/a) | – |" in text
     assert "| B-v1 | 19/20 ✗ | – | 2/20 ✗ |" in text
+
+
+def _angle_deg(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    return np.degrees(2 * np.arccos(np.clip(np.abs((q0 * q1).sum(-1)), 0.0, 1.0)))
+
+
+def test_the_nearby_scene_edits_by_hand():
+    """The edits every scene must survive (`clfd_bench.envs.robotasks.variants.NEARBY`), on a
+    quarter circle of radius 0.2 m: each starts at the demo's start pose, then is the demo
+    moved by exactly its amount; the clock edit keeps the path and both ends."""
+    from clfd_bench.envs.robotasks.variants import shifted, time_warped, tool_tilted, yawed
+
+    traj = _pose_traj()
+    out = shifted((0.005, 0.0, 0.0))(traj)
+    np.testing.assert_allclose(out[0], traj[0], atol=1e-12)
+    np.testing.assert_allclose(out[20:, :3] - traj[20:, :3], [[0.005, 0, 0]] * 180, atol=1e-12)
+    np.testing.assert_allclose(out[:, 3:], traj[:, 3:])
+    out = yawed(3.0)(traj)
+    np.testing.assert_allclose(out[0], traj[0], atol=1e-12)
+    centre = traj[:, :3].mean(0)
+    np.testing.assert_allclose(np.linalg.norm(out[:, :3] - centre, axis=1),
+                               np.linalg.norm(traj[:, :3] - centre, axis=1), atol=1e-12)
+    heading = np.arctan2(*(out[-1, 1::-1] - centre[1::-1]))
+    heading0 = np.arctan2(*(traj[-1, 1::-1] - centre[1::-1]))
+    assert np.degrees(heading - heading0) == pytest.approx(3.0)
+    np.testing.assert_allclose(_angle_deg(out[50:, 3:], traj[50:, 3:]), 3.0, atol=1e-6)
+    out = tool_tilted(3.0, (1.0, 0.0, 0.0))(traj)
+    np.testing.assert_allclose(out[:, :3], traj[:, :3])
+    np.testing.assert_allclose(_angle_deg(out[50:, 3:], traj[50:, 3:]), 3.0, atol=1e-6)
+    out = time_warped(1.4)(traj)
+    np.testing.assert_allclose(out[[0, -1]], traj[[0, -1]], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(out[:, :2], axis=1), 0.2, atol=1e-5)
+    assert np.linalg.norm(out[100, :2] - traj[0, :2]) < np.linalg.norm(traj[100, :2]
+                                                                       - traj[0, :2])
+
+
+def test_the_scene_mistakes_by_hand():
+    """`and_back`: the demo, then back along it to its start; `end_raised`: the end higher."""
+    from clfd_bench.envs.robotasks.variants import and_back, end_raised
+
+    traj = _pose_traj()
+    out = and_back(0.3)(traj)
+    np.testing.assert_allclose(out[[0, -1]], traj[[0, 0]], atol=1e-12)
+    np.testing.assert_allclose(out[139], traj[-1], atol=1e-12)  # the end at 70 %
+    np.testing.assert_allclose(np.linalg.norm(out[:, :2], axis=1), 0.2, atol=1e-5)
+    out = end_raised(0.10)(traj)
+    assert out[-1, 2] == pytest.approx(traj[-1, 2] + 0.10) and out[0, 2] == traj[0, 2]

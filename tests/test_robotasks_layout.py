@@ -38,9 +38,13 @@ def test_every_table_comes_from_the_registry():
     assert bench.DEFAULT_ENVS[2:] == tuple(env_id_for(t.dataset, t.name) for t in TASKS)
     assert set(limit_calibration.ADDED_AFTER_CALIBRATION) == {
         t.env_name for t in TASKS if task_module(t.name, "doc").CALIBRATION}
-    assert set(task_variants.VARIANTS) == {
-        env_id_for(t.dataset, t.name) for t in TASKS
-        if task_module(t.name, "variants", optional=True) is not None}
+    from clfd_bench.envs.robotasks.variants import NEARBY
+
+    assert set(task_variants.VARIANTS) == {env_id_for(t.dataset, t.name) for t in TASKS}
+    for t in TASKS:  # every scene: the nearby edits, then its own variants
+        own = task_module(t.name, "variants", optional=True)
+        assert task_variants.VARIANTS[env_id_for(t.dataset, t.name)] == [
+            *NEARBY, *(own.VARIANTS if own is not None else [])]
 
 
 def test_making_an_env_imports_no_derivation():

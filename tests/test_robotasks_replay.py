@@ -271,7 +271,16 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
               ("clfd/ObstacleRotate-v3", "carried unturned, turned and back over the shelf", 0),
               ("clfd/ObstacleRotate-v3", "turned as the demo, never back", 0),
               ("clfd/MatFolding-v3", "the arc 5 cm higher", 1),
-              ("clfd/MatFolding-v3", "laid down at 80 % of the way (short of the far edge)", 0)]
+              ("clfd/MatFolding-v3", "laid down at 80 % of the way (short of the far edge)", 0),
+              # the NEARBY edits every scene gets, and the RoboTasks scenes' own mistakes
+              ("clfd/PlateStacking-v3", "the whole path 5 mm aside (y)", 1),
+              ("clfd/Pouring-v3", "the hand tilted 3 deg about its x axis", 1),
+              ("clfd/BottleShelving-v3", "slow start, fast end (phase u^1.4)", 1),
+              ("clfd/BoxOpening-v3", "the lid opened, then pushed shut again along the same arc",
+               0),
+              ("clfd/BottleShelving-v3", "let go 10 cm higher than the demo (dropped)", 0),
+              ("clfd/PlateStacking-v3", "turned only half way (the plate let go on edge)", 0),
+              ("clfd/Pouring-v3", "tilted only half as far (the beans stay in the cup)", 0)]
     for env_id, name, expected in checks:
         (row,) = run_variants(env_id, [name], demos=[4])
         assert row.succeeded == expected, row

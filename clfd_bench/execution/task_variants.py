@@ -1,5 +1,6 @@
-"""Task-specific wrong and right trajectories for the RoboTasks9 scenes, beyond the generic
-families of `clfd_bench.execution.perturb` (which every env gets). Each task lists its own in
+"""Task-specific wrong and right trajectories for the RoboTasks and RoboTasks9 scenes, beyond
+the generic families of `clfd_bench.execution.perturb` (which every env gets), and the
+`NEARBY` edits (5 mm, 3 degrees, another clock) every scene must survive. Each task lists its own in
 its folder (`clfd_bench/envs/robotasks/<task>/variants.py`, built from the trajectory edits of
 `clfd_bench.envs.robotasks.variants`).
 
@@ -17,7 +18,7 @@ import dataclasses
 
 import gymnasium as gym
 
-from clfd_bench.envs.robotasks.variants import Variant
+from clfd_bench.envs.robotasks.variants import NEARBY, Variant
 from clfd_bench.execution.rollout import rollout
 
 __all__ = ["VARIANTS", "VariantRow", "run_variants"]
@@ -30,13 +31,14 @@ def _variants() -> dict[str, list[tuple[str, str, Variant]]]:
     out = {}
     for task in TASKS:
         own = task_module(task.name, "variants", optional=True)
-        if own is not None:
-            out[env_id_for(task.dataset, task.name)] = list(own.VARIANTS)
+        out[env_id_for(task.dataset, task.name)] = [
+            *NEARBY, *([] if own is None else own.VARIANTS)]
     return out
 
 
-#: env -> [(variant, expect, build)]; expect: "succeed", "fail", "either" (each task's
-#: `variants.VARIANTS`, `clfd_bench.envs.robotasks.registry`).
+#: env -> [(variant, expect, build)]; expect: "succeed", "fail", "either": the `NEARBY` edits
+#: every scene must survive, then the task's own (its `variants.VARIANTS`,
+#: `clfd_bench.envs.robotasks.registry`).
 VARIANTS: dict[str, list[tuple[str, str, Variant]]] = _variants()
 
 

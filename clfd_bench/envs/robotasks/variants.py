@@ -11,12 +11,33 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from clfd_bench.data.resample import min_jerk_profile
+from clfd_bench.data.resample import min_jerk_profile, slerp
 
-__all__ = ["Variant", "bumped", "lift_then_line", "over_the_top", "rolled_at_the_end",
-           "shortened", "stop_at", "tilt_kept_from_lowest", "turned_extra", "turned_fraction",
-           "turned_the_long_way", "up_then_across", "waypoints", "yaw_at_the_end", "yaw_kept",
-           "yaw_mirrored"]
+__all__ = [
+    "NEARBY",
+    "and_back",
+    "bumped",
+    "end_raised",
+    "lift_then_line",
+    "over_the_top",
+    "rolled_at_the_end",
+    "shifted",
+    "shortened",
+    "stop_at",
+    "tilt_kept_from_lowest",
+    "time_warped",
+    "tool_tilted",
+    "turned_extra",
+    "turned_fraction",
+    "turned_the_long_way",
+    "up_then_across",
+    "Variant",
+    "waypoints",
+    "yaw_at_the_end",
+    "yaw_kept",
+    "yaw_mirrored",
+    "yawed",
+]
 
 #: A demo's trajectory [T, 7] -> a variant of it [T, 7].
 Variant = Callable[[np.ndarray], np.ndarray]
@@ -33,6 +54,16 @@ def _rot(q: np.ndarray) -> Rotation:
 
 def _mj(n: int) -> np.ndarray:
     return min_jerk_profile(np.linspace(0.0, 1.0, n))
+
+
+def _blend_in(n: int, share: float = 0.1) -> np.ndarray:
+    """[n] weights rising from 0 to 1 (min-jerk) over the first ``share`` of the samples, then
+    1: a whole-path edit applied this way starts where the robot stands (the demo's start),
+    as the ``start-offset`` family's move does."""
+    k = max(2, int(round(n * share)))
+    w = np.ones(n)
+    w[:k] = _mj(k)
+    return w
 
 
 def _turn(traj: np.ndarray) -> np.ndarray:
@@ -214,5 +245,101 @@ def shortened(frac: float) -> Variant:
     def fn(traj):
         out = traj.copy()
         out[:, :2] = traj[0, :2] + frac * (traj[:, :2] - traj[0, :2])
+        return out
+    return fn
+
+
+# -- nearby: the same task done slightly otherwise (an observer's "the same") ------------------
+def shifted(offset: tuple[float, float, float]) -> Variant:
+    """The whole path moved by ``offset`` (m), blended in over its first 10 %."""
+    def fn(traj):
+        out = traj.copy()
+        out[:, :3] += _blend_in(len(traj))[:, None] * np.asarray(offset, dtype=float)
+        return out
+    return fn
+
+
+def yawed(deg: float) -> Variant:
+    """The whole path and its orientations turned ``deg`` about the vertical through the path's
+    centroid (blended in over its first 10 %)."""
+    def fn(traj):
+        w = _blend_in(len(traj))
+        turn = Rotation.from_rotvec(np.radians(deg) * w[:, None] * [0.0, 0.0, 1.0])
+        centre = traj[:, :3].mean(0)
+        out = traj.copy()
+        out[:, :3] = centre + turn.apply(traj[:, :3] - centre)
+        out[:, 3:] = _wxyz(turn * _rot(traj[:, 3:]))
+        return out
+    return fn
+
+
+def tool_tilted(deg: float, axis: tuple[float, float, float]) -> Variant:
+    """Every orientation turned a further ``deg`` about the hand's own ``axis`` (blended in
+    over the first 10 %); positions unchanged."""
+    def fn(traj):
+        w = _blend_in(len(traj))
+        unit = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        out = traj.copy()
+        out[:, 3:] = _wxyz(_rot(traj[:, 3:]) * Rotation.from_rotvec(
+            np.radians(deg) * w[:, None] * unit))
+        return out
+    return fn
+
+
+def time_warped(gamma: float) -> Variant:
+    """The same path on another clock: sample k of n is the demo at phase (k / (n-1))^gamma
+    (gamma > 1: a slow start and a fast end); positions interpolated, orientations slerped."""
+    def fn(traj):
+        n = len(traj)
+        s = np.linspace(0.0, 1.0, n) ** gamma * (n - 1)
+        i0 = np.minimum(np.floor(s).astype(int), n - 2)
+        a = s - i0
+        out = traj[i0] + a[:, None] * (traj[i0 + 1] - traj[i0])
+        out[:, 3:] = [slerp(traj[k, 3:], traj[k + 1, 3:], float(x))
+                      for k, x in zip(i0, a, strict=True)]
+        return out
+    return fn
+
+
+#: Edits every scene must survive: an observer sees the same task done (a few millimetres or
+#: degrees off, on another clock). The 1 cm noise and start-offset families are rougher.
+NEARBY: list[tuple[str, str, Variant]] = [
+    ("the whole path 5 mm aside (x)", "succeed", shifted((0.005, 0.0, 0.0))),
+    ("the whole path 5 mm aside (y)", "succeed", shifted((0.0, 0.005, 0.0))),
+    ("the whole path 5 mm higher", "succeed", shifted((0.0, 0.0, 0.005))),
+    ("turned 3 deg about the vertical", "succeed", yawed(3.0)),
+    ("turned -3 deg about the vertical", "succeed", yawed(-3.0)),
+    ("the hand tilted 3 deg about its x axis", "succeed", tool_tilted(3.0, (1.0, 0.0, 0.0))),
+    ("the hand tilted 3 deg about its y axis", "succeed", tool_tilted(3.0, (0.0, 1.0, 0.0))),
+    ("slow start, fast end (phase u^1.4)", "succeed", time_warped(1.4)),
+    ("fast start, slow end (phase u^0.8)", "succeed", time_warped(0.8)),
+]
+
+
+# -- wrong: the task's own mistakes ----------------------------------------------------------
+def end_raised(height: float) -> Variant:
+    """The path raised linearly to ``height`` (m) at its end: the object let go that much
+    higher than the demo lets it go."""
+    def fn(traj):
+        out = traj.copy()
+        out[:, 2] += height * np.linspace(0.0, 1.0, len(traj))
+        return out
+    return fn
+
+
+def and_back(share: float = 0.3) -> Variant:
+    """The demo in the first ``1 - share`` of its duration, then back along its own path to its
+    start in the rest: the task done, then undone (a lid shut again, an object carried back)."""
+    def fn(traj):
+        n = len(traj)
+        k = n - int(round(n * share))
+        ahead = np.linspace(0.0, n - 1.0, k)
+        back = np.linspace(n - 1.0, 0.0, n - k + 1)[1:]
+        s = np.concatenate([ahead, back])
+        i0 = np.minimum(np.floor(s).astype(int), n - 2)
+        a = s - i0
+        out = traj[i0] + a[:, None] * (traj[i0 + 1] - traj[i0])
+        out[:, 3:] = [slerp(traj[j, 3:], traj[j + 1, 3:], float(x))
+                      for j, x in zip(i0, a, strict=True)]
         return out
     return fn
