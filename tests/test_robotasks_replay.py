@@ -279,7 +279,7 @@ def test_own_variants_keep_valid_alternatives_and_reject_typical_mistakes():
               ("clfd/BoxOpening-v3", "the lid opened, then pushed shut again along the same arc",
                0),
               ("clfd/BottleShelving-v3", "let go 10 cm higher than the demo (dropped)", 0),
-              ("clfd/PlateStacking-v3", "turned only half way (the plate let go on edge)", 0),
+              ("clfd/PlateStacking-v3", "turned only half way (the plate let go tilted)", 0),
               ("clfd/Pouring-v3", "tilted only half as far (the beans stay in the cup)", 0)]
     for env_id, name, expected in checks:
         (row,) = run_variants(env_id, [name], demos=[4])

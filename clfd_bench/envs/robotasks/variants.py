@@ -20,6 +20,7 @@ __all__ = [
     "end_raised",
     "lift_then_line",
     "over_the_top",
+    "placing_mistakes",
     "rolled_at_the_end",
     "shifted",
     "shortened",
@@ -64,6 +65,17 @@ def _blend_in(n: int, share: float = 0.1) -> np.ndarray:
     w = np.ones(n)
     w[:k] = _mj(k)
     return w
+
+
+def _at(traj: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``traj`` [T, 7] at fractional sample indices ``s`` [n] in [0, T - 1]: positions
+    interpolated linearly, orientations slerped. Returns [n, 7]."""
+    i0 = np.minimum(np.floor(s).astype(int), len(traj) - 2)
+    a = s - i0
+    out = traj[i0] + a[:, None] * (traj[i0 + 1] - traj[i0])
+    out[:, 3:] = [slerp(traj[k, 3:], traj[k + 1, 3:], float(x))
+                  for k, x in zip(i0, a, strict=True)]
+    return out
 
 
 def _turn(traj: np.ndarray) -> np.ndarray:
@@ -291,13 +303,7 @@ def time_warped(gamma: float) -> Variant:
     (gamma > 1: a slow start and a fast end); positions interpolated, orientations slerped."""
     def fn(traj):
         n = len(traj)
-        s = np.linspace(0.0, 1.0, n) ** gamma * (n - 1)
-        i0 = np.minimum(np.floor(s).astype(int), n - 2)
-        a = s - i0
-        out = traj[i0] + a[:, None] * (traj[i0 + 1] - traj[i0])
-        out[:, 3:] = [slerp(traj[k, 3:], traj[k + 1, 3:], float(x))
-                      for k, x in zip(i0, a, strict=True)]
-        return out
+        return _at(traj, np.linspace(0.0, 1.0, n) ** gamma * (n - 1))
     return fn
 
 
@@ -335,11 +341,16 @@ def and_back(share: float = 0.3) -> Variant:
         k = n - int(round(n * share))
         ahead = np.linspace(0.0, n - 1.0, k)
         back = np.linspace(n - 1.0, 0.0, n - k + 1)[1:]
-        s = np.concatenate([ahead, back])
-        i0 = np.minimum(np.floor(s).astype(int), n - 2)
-        a = s - i0
-        out = traj[i0] + a[:, None] * (traj[i0 + 1] - traj[i0])
-        out[:, 3:] = [slerp(traj[j, 3:], traj[j + 1, 3:], float(x))
-                      for j, x in zip(i0, a, strict=True)]
-        return out
+        return _at(traj, np.concatenate([ahead, back]))
     return fn
+
+
+def placing_mistakes(prop: str, support: str) -> list[tuple[str, str, Variant]]:
+    """A placing task's typical mistakes (its prop carried to ``support`` and let go there):
+    the task undone, the prop dropped from 10 cm higher, the prop turned only half way."""
+    return [
+        (f"carried to the {support}, then back to the start and let go there", "fail",
+         and_back(0.3)),
+        ("let go 10 cm higher than the demo (dropped)", "fail", end_raised(0.10)),
+        (f"turned only half way (the {prop} let go tilted)", "fail", turned_fraction(0.5)),
+    ]

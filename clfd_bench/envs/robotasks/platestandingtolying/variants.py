@@ -1,19 +1,10 @@
-"""PlateStacking's own right and wrong trajectories, beyond the generic perturbation families
-(`clfd_bench.execution.task_variants` runs them with the `NEARBY` edits every scene gets;
-`python eval/own_variants.py`)."""
+"""PlateStacking's own wrong trajectories, beyond the generic perturbation families (a placing
+task's typical mistakes; `clfd_bench.execution.task_variants` runs them with the `NEARBY` edits
+every scene gets; `python eval/own_variants.py`)."""
 
 from __future__ import annotations
 
-from clfd_bench.envs.robotasks.variants import (
-    Variant,
-    and_back,
-    end_raised,
-    turned_fraction,
-)
+from clfd_bench.envs.robotasks.variants import Variant, placing_mistakes
 
 #: (name, what an observer would say: "succeed", "fail" or "either", the variant).
-VARIANTS: list[tuple[str, str, Variant]] = [
-    ("carried to the platform, then back to the rack and let go there", "fail", and_back(0.3)),
-    ("let go 10 cm higher than the demo (dropped)", "fail", end_raised(0.10)),
-    ("turned only half way (the plate let go on edge)", "fail", turned_fraction(0.5)),
-]
+VARIANTS: list[tuple[str, str, Variant]] = placing_mistakes("plate", "platform")
