@@ -489,6 +489,8 @@ class RunDir:
                 stale, executed = str(sim_doc.get("fingerprint")), 0
         if not results.get("complete") or trained < tasks:
             reason = f"trained {trained}/{tasks} tasks"
+            if self.has_task_snapshot():
+                reason += f" (task {trained} resumes from its snapshot)"
         elif stale is not None:
             reason = (f"executed by simulator {stale}, but this one is {fingerprint} (its "
                       "files changed since): run it again to re-execute the predictions")

@@ -28,6 +28,10 @@ def test_status_needs_every_stage_of_every_task(tmp_path):
     run.write_training_results(_training(1, complete=False))
     st = run.status(2, sim=True)
     assert (st.state, st.trained, st.reason) == ("partial", 1, "trained 1/2 tasks")
+    run.write_task_snapshot(b"task 1, mid-way")  # what the status says, not what it holds
+    assert run.status(2, sim=True).reason == ("trained 1/2 tasks (task 1 resumes from its "
+                                              "snapshot)")
+    run.clear_task_snapshot()
     run.write_training_results(_training(2))
     st = run.status(2, sim=True)
     assert st.state == "partial" and st.reason == "executed 0/2 tasks in simulation"
