@@ -5,7 +5,8 @@
 #   3. HelloWorld seeds 0,1,2   4. RoboTasks seeds 0,1,2   (seed 0 is already done: reused)
 #   5. RoboTasks9 seed 0        6. LASA seed 0
 # Each stage is `clfd-bench leaderboard --profile full`, which skips finished runs and resumes
-# a killed one after its last finished task, so the same command resumes the whole list:
+# a killed one from its last task snapshot (written every 10 min, mid-task) or after its last
+# finished task, so the same command resumes the whole list:
 #
 #   setsid nohup bash eval/full_runs.sh results/full >> results/full-runs.log 2>&1 &
 #
