@@ -40,6 +40,17 @@ class CheckpointError(ValueError):
     file and the fix. A user-facing error: ``clfd-bench`` prints it as one line, exit 2."""
 
 
+def _load(data: bytes) -> tuple[Any, str | None]:
+    """``(object, None)`` of bytes ``torch.save`` wrote, loaded without unpickling code, or
+    ``(None, reason)``: the first sentence of torch's message ("... failed finding central
+    directory") when they cannot be read (truncated, corrupt)."""
+    try:
+        return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True), None
+    except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
+        return None, (str(exc).splitlines()[0].split(". ")[0] if str(exc)
+                      else type(exc).__name__)
+
+
 def encode_checkpoint(header: Mapping[str, Any], tensors: Mapping[str, Tensor]) -> bytes:
     """The bytes of a checkpoint of ``header`` (JSON-serialisable) and ``tensors``."""
     payload = {
@@ -59,14 +70,11 @@ def decode_checkpoint(data: bytes, source: str = "checkpoint"
     Raises:
         CheckpointError: the bytes are not a clfd-bench checkpoint (``source`` names them).
     """
-    try:
-        obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
-        # the first sentence of torch's message ("... failed finding central directory")
-        reason = str(exc).splitlines()[0].split(". ")[0] if str(exc) else type(exc).__name__
+    obj, reason = _load(data)
+    if reason is not None:
         raise CheckpointError(f"{source} is not a readable clfd-bench checkpoint (truncated or "
                               f"corrupt: {reason}); delete it to train the run again from its "
-                              "first task") from None
+                              "first task")
     if not isinstance(obj, dict) or obj.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{source} is not a clfd-bench checkpoint (format "
                               f"{CHECKPOINT_FORMAT}); delete it to train the run again from "
@@ -87,13 +95,9 @@ def decode_snapshot(data: bytes, source: str = "task snapshot") -> dict[str, Any
     Raises:
         CheckpointError: the bytes are not a clfd-bench task snapshot (``source`` names them).
     """
-    try:
-        obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError, ValueError) as exc:
-        reason = str(exc).splitlines()[0].split(". ")[0] if str(exc) else type(exc).__name__
-        obj = reason
+    obj, reason = _load(data)
     if not isinstance(obj, dict) or obj.get("format") != SNAPSHOT_FORMAT:
-        why = obj if isinstance(obj, str) else f"not format {SNAPSHOT_FORMAT}"
+        why = reason or f"not format {SNAPSHOT_FORMAT}"
         raise CheckpointError(f"{source} is not a readable clfd-bench task snapshot ({why}); "
                               "delete it to learn its task again from the task's start")
     return obj["body"]

@@ -18,13 +18,12 @@ seed or task order): each keeps its own batches, optimiser, stop rule, hooks and
 state; the task losses of the runs whose batches stack are computed in one pass.
 
 **Task snapshots.** A paper-size task takes hours; :func:`train_tasks` can hand, every
-``snapshot_every`` seconds, each run's whole loop state to a callback (:func:`lane_snapshot`:
-weights, the method's :meth:`~clfd_bench.methods.base.Method.step_state`, optimiser,
-schedule, stop rule, batch generator and global RNG, the iteration), and a
-:class:`TaskRun` given such a snapshot (``resume``) continues from it. The task's start is
-replayed first (``add_task`` and ``on_task_start`` on the task's starting weights, the RNGs
-seeded as for a fresh start), then the snapshot is loaded, so the task ends bit for bit
-where the uninterrupted one does.
+``snapshot_every`` seconds, each run's whole loop state to a callback (weights, the method's
+:meth:`~clfd_bench.methods.base.Method.step_state`, optimiser, schedule, stop rule, batch
+generator and global RNG, the iteration), and a :class:`TaskRun` given such a snapshot
+(``resume``) continues from it. The task's start is replayed first (``add_task`` and
+``on_task_start`` on the task's starting weights, the RNGs seeded as for a fresh start),
+then the snapshot is loaded, so the task ends bit for bit where the uninterrupted one does.
 
 With ``stop_window > 0`` (:mod:`clfd_bench.learning.stop_rule`) ``iterations`` is a cap: the
 task ends once its smoothed loss stops improving; :class:`TrainStats` records the iterations

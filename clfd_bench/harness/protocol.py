@@ -170,6 +170,17 @@ def _diff(a: Any, b: Any, prefix: str = "") -> list[str]:
     return [] if a == b else [f"{prefix.rstrip('.')}: {a!r} -> {b!r}"]
 
 
+def _check_same_config(saved: dict[str, Any], config: RunConfig, subject: str) -> None:
+    """Refuse to go on with a saved run (a checkpoint, a task snapshot) whose configuration
+    differs from ``config`` but for the task count: RunMismatchError("``subject`` a run with a
+    different configuration (what differs); ...")."""
+    diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
+    if diff:
+        raise RunMismatchError(f"{subject} a run with a different configuration "
+                               f"({'; '.join(diff)}); use another --out directory or delete "
+                               "this one")
+
+
 def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[str]) -> dict:
     return {
         "tasks": task_names,
@@ -270,13 +281,7 @@ class _ProtocolRun:
         provenance = self.provenance = _provenance(config, ds, threads)
         if run.has_checkpoint():
             header, tensors = decode_checkpoint(run.read_checkpoint(), str(run.checkpoint_path))
-            saved = header["config"]
-            diff = _diff(_config_without_tasks(saved), _config_without_tasks(config.to_dict()))
-            if diff:
-                raise RunMismatchError(
-                    f"{out} holds a run with a different configuration ({'; '.join(diff)}); "
-                    "use another --out directory or delete this one"
-                )
+            _check_same_config(header["config"], config, f"{out} holds")
             for kind, part in learner.parts.items():
                 prefix = f"{kind}/"
                 part.restore(header["parts"][kind], {k[len(prefix):]: v for k, v in
@@ -340,12 +345,8 @@ class _ProtocolRun:
                          f"the next task {done}: removed")
             run.clear_task_snapshot()
             return
-        diff = _diff(_config_without_tasks(json.loads(body["config"])),
-                     _config_without_tasks(self.config.to_dict()))
-        if diff:
-            raise RunMismatchError(
-                f"{run.task_snapshot_path} is of a run with a different configuration "
-                f"({'; '.join(diff)}); use another --out directory or delete this one")
+        _check_same_config(json.loads(body["config"]), self.config,
+                           f"{run.task_snapshot_path} is of")
         self.snapshot_parts = dict(body["parts"])
         self.snapshot_cpu_s = float(body["cpu_s"])
         where = {kind: ("learned" if p["finished"] else f"iteration {p['iteration']}")
@@ -386,7 +387,8 @@ class _ProtocolRun:
         torch.manual_seed(seed_i)
         generator = torch.Generator().manual_seed(seed_i + 1)
         data = part.add_next(i, task)
-        resume = self.snapshot_parts.get(kind) if i == self.done else None
+        # handed over, not kept: a learned part comes back through part_learned
+        resume = self.snapshot_parts.pop(kind, None) if i == self.done else None
         return TaskRun(part.method, i, data, part.cfg, generator,
                        f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state(),
                        resume)
