@@ -8,6 +8,8 @@ scores predictions made elsewhere, fills the same files but for the checkpoints)
       checkpoint.pt                  model + progress (resumes the run)
       task_snapshot.pt               the task being learned, every few minutes (resumes it
                                      mid-task); removed once the task's checkpoint is written
+      task_snapshot.json             where that snapshot stands (task, iteration, CPU), for
+                                     the status line; read without torch
       checkpoints/after_task_{i}.pt  with --keep-checkpoints
       predictions/after_task_{i}.npz arrays task_{j} [N, T, D], j <= i
       sim_cache.json                 executed rollouts, per simulator fingerprint
@@ -60,6 +62,8 @@ __all__ = [
     "RUN_FILES",
     "RESULTS_FILE",
     "SIM_KEYS",
+    "TASK_SNAPSHOT_FILE",
+    "TASK_SNAPSHOT_NOTE",
     "RunDir",
     "RunFileError",
     "RunLockedError",
@@ -72,6 +76,7 @@ RESULTS_FILE = "results.json"
 CHECKPOINT_FILE = "checkpoint.pt"
 CHECKPOINTS_DIR = "checkpoints"
 TASK_SNAPSHOT_FILE = "task_snapshot.pt"
+TASK_SNAPSHOT_NOTE = "task_snapshot.json"
 PREDICTIONS_DIR = "predictions"
 CACHE_FILE = "sim_cache.json"
 LOG_FILE = "train.log"
@@ -79,7 +84,7 @@ FAILED_FILE = "failed.json"
 LOCK_FILE = ".lock"
 #: What a run directory may hold (the lock last): a folder with other entries is not a run.
 RUN_FILES = (RESULTS_FILE, CHECKPOINT_FILE, CHECKPOINTS_DIR, TASK_SNAPSHOT_FILE,
-             PREDICTIONS_DIR, CACHE_FILE, LOG_FILE, FAILED_FILE, LOCK_FILE)
+             TASK_SNAPSHOT_NOTE, PREDICTIONS_DIR, CACHE_FILE, LOG_FILE, FAILED_FILE, LOCK_FILE)
 #: The keys of ``results.json`` that execution in simulation writes.
 SIM_KEYS = ("success", "sim_accuracy", "sim_cl_metrics", "sim")
 _CACHE_SCHEMA = 3  # 2: summaries carry failure_kind; 3: checks and stopped_early
@@ -228,11 +233,11 @@ class RunDir:
 
     def portable_files(self) -> list[Path]:
         """The files that make up the run, for copying it elsewhere (a shipped bundle):
-        ``results.json``, ``checkpoint.pt``, the task snapshot, kept checkpoints, every
-        predictions file, ``sim_cache.json`` and ``train.log``; not the lock, ``failed.json``
-        or temporary files. Sorted; only those that exist."""
+        ``results.json``, ``checkpoint.pt``, the task snapshot and its note, kept
+        checkpoints, every predictions file, ``sim_cache.json`` and ``train.log``; not the
+        lock, ``failed.json`` or temporary files. Sorted; only those that exist."""
         fixed = [self.results_path, self.checkpoint_path, self.task_snapshot_path,
-                 self.cache_path, self.log_path]
+                 self.path / TASK_SNAPSHOT_NOTE, self.cache_path, self.log_path]
         kept = sorted((self.path / CHECKPOINTS_DIR).glob("after_task_*.pt"))
         preds = sorted((self.path / PREDICTIONS_DIR).glob("after_task_*.npz"))
         return sorted(p for p in [*fixed, *kept, *preds] if p.is_file())
@@ -398,9 +403,29 @@ class RunDir:
     def has_task_snapshot(self) -> bool:
         return self.task_snapshot_path.is_file()
 
-    def write_task_snapshot(self, data: bytes) -> None:
-        """Writes ``task_snapshot.pt`` (atomically: a kill leaves the old one or the new)."""
+    def write_task_snapshot(self, data: bytes, note: Mapping[str, Any] | None = None) -> None:
+        """Writes ``task_snapshot.pt`` (atomically: a kill leaves the old one or the new), then
+        ``note`` (JSON: ``task``, ``task_name``, ``parts`` {part: "learned" | "iteration N"},
+        ``cpu_s``) to ``task_snapshot.json`` for :meth:`status`; without ``note`` an older
+        note is removed. A kill between the two writes leaves the note one snapshot behind:
+        the status then names an earlier iteration, never a later one."""
         atomic_write_bytes(self.task_snapshot_path, data)
+        note_path = self.path / TASK_SNAPSHOT_NOTE
+        if note is None:
+            note_path.unlink(missing_ok=True)
+        else:
+            atomic_write_json(note_path, dict(note))
+
+    def task_snapshot_note(self) -> dict[str, Any] | None:
+        """``task_snapshot.json`` as written with the snapshot (None: no snapshot, no note,
+        or a note that cannot be read; it is only for the status line)."""
+        if not self.has_task_snapshot():
+            return None
+        try:
+            doc = json.loads((self.path / TASK_SNAPSHOT_NOTE).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        return doc if isinstance(doc, dict) else None
 
     def read_task_snapshot(self) -> bytes:
         """The bytes of ``task_snapshot.pt`` (FileNotFoundError: there is none)."""
@@ -408,8 +433,9 @@ class RunDir:
 
     def clear_task_snapshot(self) -> None:
         """Removes ``task_snapshot.pt`` (its task is finished and checkpointed, or the
-        snapshot is of an older task)."""
+        snapshot is of an older task), and its note."""
         self.task_snapshot_path.unlink(missing_ok=True)
+        (self.path / TASK_SNAPSHOT_NOTE).unlink(missing_ok=True)
 
     # ------------------------------------------------------------------ rollout cache
     def load_cache(self, fingerprint: str) -> dict[str, dict[str, Any]]:
@@ -490,7 +516,7 @@ class RunDir:
         if not results.get("complete") or trained < tasks:
             reason = f"trained {trained}/{tasks} tasks"
             if self.has_task_snapshot():
-                reason += f" (task {trained} resumes from its snapshot)"
+                reason += f" ({self._snapshot_reason(trained)})"
         elif stale is not None:
             reason = (f"executed by simulator {stale}, but this one is {fingerprint} (its "
                       "files changed since): run it again to re-execute the predictions")
@@ -500,6 +526,18 @@ class RunDir:
             return RunStatus("done", trained, tasks, executed)
         state = "failed" if self.failed_path.is_file() else "partial"
         return RunStatus(state, trained, tasks, executed, reason)
+
+    def _snapshot_reason(self, task: int) -> str:
+        """"task 1 'e' resumes from its snapshot: position iteration 1088, 12 min of CPU
+        in the task" (the note's details when it is of ``task``)."""
+        note = self.task_snapshot_note()
+        if not note or note.get("task") != task:
+            return f"task {task} resumes from its snapshot"
+        name = f" {note['task_name']!r}" if note.get("task_name") else ""
+        parts = ", ".join(f"{kind} {where}" for kind, where in (note.get("parts") or {}).items())
+        cpu = note.get("cpu_s")
+        spent = f", {cpu / 60:.0f} min of CPU in the task" if isinstance(cpu, int | float) else ""
+        return f"task {task}{name} resumes from its snapshot: {parts or 'started'}{spent}"
 
     # ------------------------------------------------------------------ replace (Ray)
     def replace_with(self, staging: str | os.PathLike[str]) -> None:

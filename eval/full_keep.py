@@ -29,9 +29,9 @@ match its results. ``restore`` extracts a partial run with its checkpoint and do
 it again: the grid resumes it, trains what is left and executes it. Once it is done, ``save``
 archives it again without its checkpoint, in place of the partial archive. A run's
 ``task_snapshot.pt`` (the task being learned, with the optimiser's moments: about three times
-its checkpoint, over 100 MB for a RoboTasks run) is never kept: it resumes the task mid-way
-on the machine that wrote it, which sessions on a machine that lives on use (a killed run
-continues there from its last snapshot, at most ten minutes back).
+its checkpoint, over 100 MB for a RoboTasks run) is never kept, nor its note: it resumes the
+task mid-way on the machine that wrote it, which sessions on a machine that lives on use (a
+killed run continues there from its last snapshot, at most ten minutes back).
 
 ``save`` archives every run under OUT (``OUT/<dataset>/runs/<dataset>/<method>/<run>``, as
 ``eval/full_runs.sh`` lays them out) that is done (every task trained and executed by the
@@ -56,10 +56,10 @@ from pathlib import Path
 from clfd_bench.execution.fingerprint import sim_fingerprint
 from clfd_bench.io import atomic_write_json, sha256_file
 from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
-from clfd_bench.runs import TASK_SNAPSHOT_FILE, RunDir, find_runs
+from clfd_bench.runs import TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE, RunDir, find_runs
 
 MANIFEST = "MANIFEST.json"
-LEFT_OUT = ("checkpoint.pt", "checkpoints", TASK_SNAPSHOT_FILE)
+LEFT_OUT = ("checkpoint.pt", "checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE)
 
 
 def _manifest(keep: Path) -> dict:
@@ -97,7 +97,8 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
                 print(f"  {key}: not kept (unfinished, {tasks} tasks learned; {why})")
                 continue
             # checkpoint.pt goes in
-            sha = _archive(run, keep, key, left_out=("checkpoints", TASK_SNAPSHOT_FILE))
+            sha = _archive(run, keep, key,
+                           left_out=("checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE))
             manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
         else:
             print(f"  {key}: not kept ({state.reason or state.state})")

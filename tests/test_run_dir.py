@@ -31,7 +31,17 @@ def test_status_needs_every_stage_of_every_task(tmp_path):
     run.write_task_snapshot(b"task 1, mid-way")  # what the status says, not what it holds
     assert run.status(2, sim=True).reason == ("trained 1/2 tasks (task 1 resumes from its "
                                               "snapshot)")
+    note = {"task": 1, "task_name": "e", "parts": {"position": "learned",
+                                                    "orientation": "iteration 758"},
+            "cpu_s": 2185.9}
+    run.write_task_snapshot(b"task 1, mid-way", note)  # its note says how far it is
+    assert run.status(2, sim=True).reason == (
+        "trained 1/2 tasks (task 1 'e' resumes from its snapshot: position learned, "
+        "orientation iteration 758, 36 min of CPU in the task)")
+    run.write_task_snapshot(b"task 0, of an older run", note | {"task": 0})  # not this task's
+    assert run.status(2, sim=True).reason.endswith("(task 1 resumes from its snapshot)")
     run.clear_task_snapshot()
+    assert run.task_snapshot_note() is None and not (run.path / "task_snapshot.json").exists()
     run.write_training_results(_training(2))
     st = run.status(2, sim=True)
     assert st.state == "partial" and st.reason == "executed 0/2 tasks in simulation"

@@ -11,6 +11,7 @@ next run); tests/test_kill_resume.py kills the CLI with SIGKILL mid-task instead
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ from clfd_bench.harness.protocol import (
 from clfd_bench.harness.run import TrainSpec
 from clfd_bench.methods import list_methods
 from clfd_bench.methods.packnet import PackNet
-from clfd_bench.runs import RunDir
+from clfd_bench.runs import TASK_SNAPSHOT_NOTE, RunDir
 
 EVERY_ROUND = 1e-12
 """snapshot_every: a snapshot after every iteration but a model's last (which ends its task);
@@ -50,8 +51,8 @@ def cut_after(monkeypatch):
     def arm(n: int) -> list[Path]:
         written.clear()
 
-        def write(self, data: bytes) -> None:
-            original(self, data)
+        def write(self, data: bytes, note=None) -> None:
+            original(self, data, note)
             written.append(self.path)
             if len(written) == n:
                 raise _Cut(f"cut after snapshot {n}")
@@ -91,10 +92,17 @@ def _cut_and_resume(config, out: Path, cut_after, n: int) -> list[str]:
     with pytest.raises(_Cut):
         run_training(config, out, log=None, snapshot_every=EVERY_ROUND)
     assert RunDir(out).has_task_snapshot()
+    # the status line says where the snapshot stands, as the resumed run's log does
+    status = RunDir(out).status(99, sim=False).reason
     cut_after(0)
     log: list[str] = []
     run_training(config, out, log=log.append, snapshot_every=0)
     assert not RunDir(out).has_task_snapshot(), "the finished task removes its snapshot"
+    assert not (out / TASK_SNAPSHOT_NOTE).exists(), "and its note"
+    resumed = next(line for line in log if "from its snapshot: " in line)
+    task, name, where = re.search(r"in task (\d+) \((\w+)\) from its snapshot: (.*)$",
+                                  resumed).groups()
+    assert f"(task {task} '{name}' resumes from its snapshot: {where}, " in status, status
     return log
 
 

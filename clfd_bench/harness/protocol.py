@@ -138,6 +138,12 @@ def _saved_cpus(saved: dict[str, Any], done: int) -> list[dict[str, Any] | None]
     return cpus + [None] * (done - len(cpus))
 
 
+def _where(parts: dict[str, dict[str, Any]]) -> dict[str, str]:
+    """Where a snapshot's parts stand: {part: "learned" | "iteration N"}."""
+    return {kind: ("learned" if p["finished"] else f"iteration {p['iteration']}")
+            for kind, p in parts.items()}
+
+
 def _cpu_change(saved: list[dict[str, Any] | None], now: dict[str, Any]) -> str:
     """Describe how the CPUs (model and kernel capability) of a run's saved tasks differ from
     this process's ``now``; ``""`` when every recorded one matches."""
@@ -349,8 +355,7 @@ class _ProtocolRun:
                            f"{run.task_snapshot_path} is of")
         self.snapshot_parts = dict(body["parts"])
         self.snapshot_cpu_s = float(body["cpu_s"])
-        where = {kind: ("learned" if p["finished"] else f"iteration {p['iteration']}")
-                 for kind, p in self.snapshot_parts.items()}
+        where = _where(self.snapshot_parts)
         self.provenance["resumed_in_task"].append(
             {"task": done, "parts": where, "cpu": body.get("cpu")})
         if self.log:
@@ -368,7 +373,9 @@ class _ProtocolRun:
         body = {"task": i, "config": json.dumps(json_safe(self.config.to_dict())),
                 "cpu_s": self.snapshot_cpu_s + cpu_s, "cpu": self.provenance["cpu"],
                 "parts": self.snapshot_parts | parts}
-        self.run.write_task_snapshot(encode_snapshot(body))
+        note = {"task": i, "task_name": self.tasks[i].name, "parts": _where(body["parts"]),
+                "cpu_s": round(body["cpu_s"], 1)}
+        self.run.write_task_snapshot(encode_snapshot(body), note)
 
     def part_learned(self, i: int, unit: TaskRun, kind: str, stats: TrainStats,
                      cpu_s: float) -> None:
