@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The `full` profile's long runs (issue 38, item 5): the paper's seven methods at the paper's
-# model sizes, one worker, one torch thread, niced, in this order:
+# model sizes, one worker, one torch thread, niced, seed 0 of every dataset first (about 140 h
+# of CPU in all, docs/studies/paper.md, "What the full runs still need"), in this order:
 #   1. HelloWorld seed 0        2. RoboTasks seed 0
-#   3. HelloWorld seeds 0,1,2   4. RoboTasks seeds 0,1,2   (seed 0 is already done: reused)
 #   5. RoboTasks9 seed 0        6. LASA seed 0
+#   3. HelloWorld seeds 0,1,2   4. RoboTasks seeds 0,1,2   (seed 0 is already done: reused)
 # Each stage is `clfd-bench leaderboard --profile full`, which skips finished runs and resumes
 # a killed one from its last task snapshot (written every 10 min, mid-task) or after its last
 # finished task, so the same command resumes the whole list:
@@ -80,10 +81,10 @@ main() {
                     return 2; }
   stage 1 helloworld 0
   stage 2 robotasks 0
-  stage 3 helloworld 0,1,2
-  stage 4 robotasks 0,1,2
   stage 5 robotasks9 0
   stage 6 lasa 0
+  stage 3 helloworld 0,1,2
+  stage 4 robotasks 0,1,2
   echo "[full_runs] $(date -u +%FT%TZ) all stages done"
 }
 
