@@ -2,6 +2,8 @@
 
     python eval/bound_audit.py run GRID OUT.jsonl [TASK ...]   # re-execute a grid's predictions
     python eval/bound_audit.py table OUT.jsonl [OUT.jsonl ...]   # the nearest ones, as markdown
+    python eval/bound_audit.py whatif OUT.jsonl [...] [--drop [TASK:]CHECK] [--bound
+        [TASK:]CHECK=VALUE] [--floor [TASK:]CHECK=VALUE] [--decisions]   # exec ACC if ...
 
 `run` re-executes every saved prediction of the runs under ``GRID/runs/<dataset>/<method>/<run>/``
 (``predictions/after_task_<i>.npz``; only the tasks named, default all) in the scene of its task,
@@ -14,6 +16,16 @@ grid that is still being written first). Identical predictions of a run are exec
 each side (value, bound, method, after which task, demo, whether every other check passed),
 then the executions that failed by that check alone: the verdicts an observer must be able to
 sign (docs/execution.md, "Where every bound comes from").
+
+`whatif` scores the same executions again under other success rules, without simulating: a
+check dropped, its bound replaced, or raised to a floor (values in the check's unit as stored:
+m, deg), for every task or for TASK only. An execution succeeds when it failed by no other
+cause than its checks (a reflex, tracking loss or divergence still fails) and every remaining
+check passes. It prints, per run and per method (median over its runs), exec ACC and REM as
+recorded by the rules of today (rescored from the same lines, so equal to the run's own
+leaderboard row) and under the rules given, and the ranking by exec ACC both ways.
+`--decisions` does this for the open decisions of docs/decisions.md that rescoring can answer
+(1a, 1b, 2 and 1b with 2), one table.
 """
 
 from __future__ import annotations
@@ -124,6 +136,124 @@ def table(paths: list[Path]) -> str:
     return "\n".join(out)
 
 
+#: The placing scenes whose `release_offset` decision 1 of docs/decisions.md is about.
+PLACING = ("bottle2shelf", "platestandingtolying", "wineglass", "pan2stove", "obstaclerotate")
+#: Rule = (how, task or None, check, value): how is "drop", "bound" or "floor".
+Rule = tuple[str, str | None, str, float]
+#: The open decisions that rescoring answers (docs/decisions.md), as rules.
+DECISIONS: dict[str, list[Rule]] = {
+    "1a: release floor 3 cm": [("floor", t, "release_offset", 0.03) for t in PLACING],
+    "1b: placed on the board (no end point)": [("drop", t, "release_offset", 0.0)
+                                               for t in PLACING]
+    + [("drop", "pouring", "pour_offset", 0.0)],
+    "2: rack shift 5 cm": [("bound", "platestandingtolying", "rack_shift", 0.05)],
+}
+DECISIONS["1b and 2"] = DECISIONS["1b: placed on the board (no end point)"] + \
+    DECISIONS["2: rack shift 5 cm"]
+
+
+def parse_rule(how: str, text: str) -> Rule:
+    """``[TASK:]CHECK`` (drop) or ``[TASK:]CHECK=VALUE`` (bound, floor) as a :data:`Rule`."""
+    name, _, value = text.partition("=")
+    task, _, check = name.rpartition(":")
+    if not check or (how != "drop") != bool(value):
+        form = "[TASK:]CHECK" if how == "drop" else "[TASK:]CHECK=VALUE"
+        raise ValueError(f"--{how} {text!r}: expected {form}")
+    try:
+        number = float(value) if value else 0.0
+    except ValueError:
+        raise ValueError(f"--{how} {text!r}: {value!r} is not a number") from None
+    return how, task or None, check, number
+
+
+def _check_passes(c: dict, task: str, rules: list[Rule]) -> bool:
+    bound, dropped = c["bound"], False
+    for how, t, name, value in rules:
+        if name != c["name"] or (t is not None and t != task):
+            continue
+        if how == "drop":
+            dropped = True
+        elif how == "bound":
+            bound = value
+        else:  # floor: only an upper bound is raised, only a lower bound lowered
+            bound = max(bound, value) if c["op"] == "<=" else min(bound, value)
+    if dropped or c["value"] is None:
+        return dropped or c["passed"]
+    return c["value"] <= bound if c["op"] == "<=" else c["value"] >= bound
+
+
+def rescore(r: dict, rules: list[Rule]) -> bool:
+    """Whether execution line ``r`` succeeds under ``rules`` (no rules: as recorded)."""
+    if not r.get("checks") or r.get("kind") not in (None, "task"):
+        return bool(r["success"])
+    return all(_check_passes(c, r["task"], rules) for c in r["checks"])
+
+
+def _matrices(paths: list[Path], rules: list[Rule]) -> dict[str, tuple[str, np.ndarray,
+                                                                          np.ndarray]]:
+    """Per run: (method, R today [T, T], R under ``rules``), success rates per (after, task)."""
+    lines: dict[tuple, dict] = {}
+    for p in paths:
+        for line in p.read_text().splitlines():
+            r = json.loads(line)
+            lines[(r["run"], r["after"], r["task"], r["demo"])] = r
+    by_run: dict[str, list[dict]] = defaultdict(list)
+    for r in lines.values():
+        by_run[r["run"]].append(r)
+    out = {}
+    for run, rs in sorted(by_run.items()):
+        order = list(load_run(Path(run)).task_names)  # the run's task order
+        n = len(order)
+        sums = np.zeros((2, n, n))
+        counts = np.zeros((n, n))
+        for r in rs:
+            i, j = r["after"], order.index(r["task"])
+            counts[i, j] += 1
+            sums[0, i, j] += bool(r["success"])
+            sums[1, i, j] += rescore(r, rules)
+        low = np.tril(np.ones((n, n), dtype=bool))
+        if not counts[low].all():
+            raise ValueError(f"{run}: the lines do not cover every (after, task) cell of its "
+                             f"{n} tasks ({', '.join(order)}); run `bound_audit.py run` on "
+                             "all its tasks first")
+        with np.errstate(invalid="ignore"):
+            today, then = sums[0] / counts, sums[1] / counts
+        out[run] = (rs[0]["method"], np.where(low, today, 0.0), np.where(low, then, 0.0))
+    return out
+
+
+def whatif(paths: list[Path], scenarios: dict[str, list[Rule]]) -> str:
+    """The markdown tables of `whatif` (module docstring), one column pair per scenario."""
+    from clfd_bench.metrics.cl import acc, rem
+
+    names = list(scenarios)
+    per = {name: _matrices(paths, rules) for name, rules in scenarios.items()}
+    runs = per[names[0]]
+    head = "| run | method | exec ACC today | " + " | ".join(f"{n}" for n in names) + " |"
+    out = ["Per run, exec ACC (REM):", "", head, "|---" * (3 + len(names)) + "|"]
+    methods: dict[str, list[list[float]]] = defaultdict(list)
+    for run, (method, today, _) in runs.items():
+        cells = [f"{acc(today):.2f} ({rem(today):.2f})"]
+        vals = [acc(today)]
+        for n in names:
+            then = per[n][run][2]
+            cells.append(f"{acc(then):.2f} ({rem(then):.2f})")
+            vals.append(acc(then))
+        methods[method].append(vals)
+        out.append(f"| {Path(run).name} | {method} | " + " | ".join(cells) + " |")
+    out += ["", "Per method, median exec ACC over its runs, and the ranking:", "",
+            "| method | runs | today | " + " | ".join(names) + " |",
+            "|---" * (3 + len(names)) + "|"]
+    med = {m: np.median(np.array(v), axis=0) for m, v in methods.items()}
+    for m, v in sorted(med.items(), key=lambda kv: -kv[1][0]):
+        cells = [f"{v[0]:.2f}"] + [f"{x:.2f} ({x - v[0]:+.2f})" for x in v[1:]]
+        out.append(f"| {m} | {len(methods[m])} | " + " | ".join(cells) + " |")
+    for k, label in enumerate(["today", *names]):
+        ranked = sorted(med, key=lambda m: -med[m][k])
+        out.append(f"\nranking {label}: " + " > ".join(f"{m} {med[m][k]:.2f}" for m in ranked))
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
@@ -133,7 +263,34 @@ def main(argv: list[str] | None = None) -> int:
     p_run.add_argument("tasks", nargs="*")
     p_table = sub.add_parser("table", help="the executions nearest each bound")
     p_table.add_argument("files", nargs="+", type=Path)
+    p_what = sub.add_parser("whatif", help="exec ACC of the same executions under other rules")
+    p_what.add_argument("files", nargs="+", type=Path)
+    p_what.add_argument("--drop", action="append", default=[], metavar="[TASK:]CHECK")
+    p_what.add_argument("--bound", action="append", default=[], metavar="[TASK:]CHECK=VALUE")
+    p_what.add_argument("--floor", action="append", default=[], metavar="[TASK:]CHECK=VALUE")
+    p_what.add_argument("--decisions", action="store_true",
+                        help="the open decisions of docs/decisions.md, one column each")
     args = parser.parse_args(argv)
+    if args.cmd == "whatif":
+        try:
+            rules = [parse_rule(how, text) for how in ("drop", "bound", "floor")
+                     for text in getattr(args, how)]
+        except ValueError as e:
+            parser.error(str(e))
+        scenarios = dict(DECISIONS) if args.decisions else {}
+        if rules:
+            scenarios["the rules given"] = rules
+        if not scenarios:
+            parser.error("whatif needs --drop, --bound, --floor or --decisions")
+        missing = [str(f) for f in args.files if not f.is_file()]
+        if missing:
+            parser.error(f"no such file: {', '.join(missing)} (made by `bound_audit.py run`)")
+        try:
+            print(whatif(args.files, scenarios))
+        except ValueError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        return 0
     if args.cmd == "run":
         if not (args.grid / "runs").is_dir():
             parser.error(f"{args.grid} has no runs/ folder: pass a grid's --out folder")
