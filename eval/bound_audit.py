@@ -189,9 +189,10 @@ def rescore(r: dict, rules: list[Rule]) -> bool:
     return all(_check_passes(c, r["task"], rules) for c in r["checks"])
 
 
-def _matrices(paths: list[Path], rules: list[Rule]) -> dict[str, tuple[str, np.ndarray,
-                                                                          np.ndarray]]:
-    """Per run: (method, R today [T, T], R under ``rules``), success rates per (after, task)."""
+def _matrices(paths: list[Path], rules: list[Rule]
+              ) -> dict[str, tuple[str, np.ndarray, np.ndarray, float | None]]:
+    """Per run: (method, R today [T, T], R under ``rules``, the exec ACC its results.json
+    records or None), success rates per (after, task)."""
     lines: dict[tuple, dict] = {}
     for p in paths:
         for line in p.read_text().splitlines():
@@ -202,7 +203,9 @@ def _matrices(paths: list[Path], rules: list[Rule]) -> dict[str, tuple[str, np.n
         by_run[r["run"]].append(r)
     out = {}
     for run, rs in sorted(by_run.items()):
-        order = list(load_run(Path(run)).task_names)  # the run's task order
+        saved = load_run(Path(run))
+        order = list(saved.task_names)  # the run's task order
+        recorded = (saved.results.get("sim_cl_metrics") or {}).get("ACC")
         n = len(order)
         sums = np.zeros((2, n, n))
         counts = np.zeros((n, n))
@@ -218,7 +221,8 @@ def _matrices(paths: list[Path], rules: list[Rule]) -> dict[str, tuple[str, np.n
                              "all its tasks first")
         with np.errstate(invalid="ignore"):
             today, then = sums[0] / counts, sums[1] / counts
-        out[run] = (rs[0]["method"], np.where(low, today, 0.0), np.where(low, then, 0.0))
+        out[run] = (rs[0]["method"], np.where(low, today, 0.0), np.where(low, then, 0.0),
+                    None if recorded is None else float(recorded))
     return out
 
 
@@ -229,11 +233,15 @@ def whatif(paths: list[Path], scenarios: dict[str, list[Rule]]) -> str:
     names = list(scenarios)
     per = {name: _matrices(paths, rules) for name, rules in scenarios.items()}
     runs = per[names[0]]
-    head = "| run | method | exec ACC today | " + " | ".join(f"{n}" for n in names) + " |"
-    out = ["Per run, exec ACC (REM):", "", head, "|---" * (3 + len(names)) + "|"]
+    head = ("| run | method | recorded | exec ACC today | " + " | ".join(f"{n}" for n in names)
+            + " |")
+    out = ["Per run, exec ACC (REM); 'recorded': the run's own results.json, made with early-"
+           "stopped rollouts (today's rules rescored must equal it under the same simulator):",
+           "", head, "|---" * (4 + len(names)) + "|"]
     methods: dict[str, list[list[float]]] = defaultdict(list)
-    for run, (method, today, _) in runs.items():
-        cells = [f"{acc(today):.2f} ({rem(today):.2f})"]
+    for run, (method, today, _, recorded) in runs.items():
+        cells = ["–" if recorded is None else f"{recorded:.2f}",
+                 f"{acc(today):.2f} ({rem(today):.2f})"]
         vals = [acc(today)]
         for n in names:
             then = per[n][run][2]
