@@ -47,6 +47,21 @@ def pose_env_cls():
     return BarePoseEnv
 
 
+@pytest.fixture(scope="session")
+def eval_script():
+    """``eval_script(name)``: the module of ``eval/<name>.py`` (the scripts are not a package)."""
+    import importlib.util
+
+    def load(name: str):
+        path = Path(__file__).resolve().parents[1] / "eval" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+
+    return load
+
+
 @functools.cache
 def _shares_a_fixture(path: Path) -> bool:
     """Whether the test file at `path` defines a module-, class- or package-scoped fixture."""

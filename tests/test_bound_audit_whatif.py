@@ -3,7 +3,6 @@ hand-computed exec ACC and REM (docs/decisions.md's open decisions are read this
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -11,15 +10,10 @@ import pytest
 
 from clfd_bench.runs import RunDir
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 @pytest.fixture(scope="module")
-def audit():
-    spec = importlib.util.spec_from_file_location("bound_audit", ROOT / "eval" / "bound_audit.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+def audit(eval_script):
+    return eval_script("bound_audit")
 
 
 def _check(name: str, value: float, bound: float, op: str = "<=") -> dict:

@@ -6,7 +6,6 @@ is executed again on restore (without a checkpoint the grid would train it from 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 from pathlib import Path
@@ -21,11 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def keep_mod():
-    spec = importlib.util.spec_from_file_location("full_keep", ROOT / "eval" / "full_keep.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+def keep_mod(eval_script):
+    return eval_script("full_keep")
 
 
 @pytest.fixture()
