@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The `full` profile's long runs (issue 38, item 5): the paper's seven methods at the paper's
-# model sizes, one worker, one torch thread, niced, seed 0 of every dataset first (about 140 h
-# of CPU in all, docs/studies/paper.md, "What the full runs still need"), in this order:
+# model sizes, one worker, one torch thread, niced, seed 0 of every dataset first (about 120 h
+# of CPU, docs/studies/paper.md, "What the full runs still need"), in this order:
 #   1. HelloWorld seed 0        2. RoboTasks seed 0
 #   5. RoboTasks9 seed 0        6. LASA seed 0
 #   3. HelloWorld seeds 0,1,2   4. RoboTasks seeds 0,1,2   (seed 0 is already done: reused)
