@@ -237,7 +237,7 @@ class RunDir:
         checkpoints, every predictions file, ``sim_cache.json`` and ``train.log``; not the
         lock, ``failed.json`` or temporary files. Sorted; only those that exist."""
         fixed = [self.results_path, self.checkpoint_path, self.task_snapshot_path,
-                 self.path / TASK_SNAPSHOT_NOTE, self.cache_path, self.log_path]
+                 self.task_snapshot_note_path, self.cache_path, self.log_path]
         kept = sorted((self.path / CHECKPOINTS_DIR).glob("after_task_*.pt"))
         preds = sorted((self.path / PREDICTIONS_DIR).glob("after_task_*.npz"))
         return sorted(p for p in [*fixed, *kept, *preds] if p.is_file())
@@ -400,6 +400,11 @@ class RunDir:
         :func:`clfd_bench.harness.checkpoint.encode_snapshot`)."""
         return self.path / TASK_SNAPSHOT_FILE
 
+    @property
+    def task_snapshot_note_path(self) -> Path:
+        """``task_snapshot.json``: where the task snapshot stands, for :meth:`status`."""
+        return self.path / TASK_SNAPSHOT_NOTE
+
     def has_task_snapshot(self) -> bool:
         return self.task_snapshot_path.is_file()
 
@@ -410,11 +415,10 @@ class RunDir:
         note is removed. A kill between the two writes leaves the note one snapshot behind:
         the status then names an earlier iteration, never a later one."""
         atomic_write_bytes(self.task_snapshot_path, data)
-        note_path = self.path / TASK_SNAPSHOT_NOTE
         if note is None:
-            note_path.unlink(missing_ok=True)
+            self.task_snapshot_note_path.unlink(missing_ok=True)
         else:
-            atomic_write_json(note_path, dict(note))
+            atomic_write_json(self.task_snapshot_note_path, dict(note))
 
     def task_snapshot_note(self) -> dict[str, Any] | None:
         """``task_snapshot.json`` as written with the snapshot (None: no snapshot, no note,
@@ -422,7 +426,7 @@ class RunDir:
         if not self.has_task_snapshot():
             return None
         try:
-            doc = json.loads((self.path / TASK_SNAPSHOT_NOTE).read_text(encoding="utf-8"))
+            doc = json.loads(self.task_snapshot_note_path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
         return doc if isinstance(doc, dict) else None
@@ -435,7 +439,7 @@ class RunDir:
         """Removes ``task_snapshot.pt`` (its task is finished and checkpointed, or the
         snapshot is of an older task), and its note."""
         self.task_snapshot_path.unlink(missing_ok=True)
-        (self.path / TASK_SNAPSHOT_NOTE).unlink(missing_ok=True)
+        self.task_snapshot_note_path.unlink(missing_ok=True)
 
     # ------------------------------------------------------------------ rollout cache
     def load_cache(self, fingerprint: str) -> dict[str, dict[str, Any]]:

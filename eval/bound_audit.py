@@ -189,10 +189,9 @@ def rescore(r: dict, rules: list[Rule]) -> bool:
     return all(_check_passes(c, r["task"], rules) for c in r["checks"])
 
 
-def _matrices(paths: list[Path], rules: list[Rule]
-              ) -> dict[str, tuple[str, np.ndarray, np.ndarray, float | None]]:
-    """Per run: (method, R today [T, T], R under ``rules``, the exec ACC its results.json
-    records or None), success rates per (after, task)."""
+def _runs(paths: list[Path]) -> dict[str, tuple[str, list[str], float | None, list[dict]]]:
+    """The lines of ``paths`` by run, read once: run -> (method, its task order, the exec
+    ACC its results.json records or None, its lines; a line written twice counts once)."""
     lines: dict[tuple, dict] = {}
     for p in paths:
         for line in p.read_text().splitlines():
@@ -204,26 +203,36 @@ def _matrices(paths: list[Path], rules: list[Rule]
     out = {}
     for run, rs in sorted(by_run.items()):
         saved = load_run(Path(run))
-        order = list(saved.task_names)  # the run's task order
         recorded = (saved.results.get("sim_cl_metrics") or {}).get("ACC")
-        n = len(order)
-        sums = np.zeros((2, n, n))
-        counts = np.zeros((n, n))
-        for r in rs:
-            i, j = r["after"], order.index(r["task"])
-            counts[i, j] += 1
-            sums[0, i, j] += bool(r["success"])
-            sums[1, i, j] += rescore(r, rules)
-        low = np.tril(np.ones((n, n), dtype=bool))
-        if not counts[low].all():
-            raise ValueError(f"{run}: the lines do not cover every (after, task) cell of its "
-                             f"{n} tasks ({', '.join(order)}); run `bound_audit.py run` on "
-                             "all its tasks first")
-        with np.errstate(invalid="ignore"):
-            today, then = sums[0] / counts, sums[1] / counts
-        out[run] = (rs[0]["method"], np.where(low, today, 0.0), np.where(low, then, 0.0),
-                    None if recorded is None else float(recorded))
+        out[run] = (rs[0]["method"], list(saved.task_names),
+                    None if recorded is None else float(recorded), rs)
     return out
+
+
+def _rates(run: str, order: list[str], rs: list[dict], rules: list[Rule] | None) -> np.ndarray:
+    """R [T, T] of one run's lines ``rs``: the success rate per (after, task) below the
+    diagonal, as recorded (``rules`` None) or rescored under ``rules``."""
+    n = len(order)
+    sums, counts = np.zeros((n, n)), np.zeros((n, n))
+    for r in rs:
+        i, j = r["after"], order.index(r["task"])
+        counts[i, j] += 1
+        sums[i, j] += bool(r["success"]) if rules is None else rescore(r, rules)
+    low = np.tril(np.ones((n, n), dtype=bool))
+    if not counts[low].all():
+        raise ValueError(f"{run}: the lines do not cover every (after, task) cell of its "
+                         f"{n} tasks ({', '.join(order)}); run `bound_audit.py run` on "
+                         "all its tasks first")
+    with np.errstate(invalid="ignore"):
+        return np.where(low, sums / counts, 0.0)
+
+
+def _matrices(paths: list[Path], rules: list[Rule]
+              ) -> dict[str, tuple[str, np.ndarray, np.ndarray, float | None]]:
+    """Per run: (method, R today [T, T], R under ``rules``, the exec ACC its results.json
+    records or None), success rates per (after, task)."""
+    return {run: (method, _rates(run, order, rs, None), _rates(run, order, rs, rules), rec)
+            for run, (method, order, rec, rs) in _runs(paths).items()}
 
 
 def whatif(paths: list[Path], scenarios: dict[str, list[Rule]]) -> str:
@@ -231,20 +240,20 @@ def whatif(paths: list[Path], scenarios: dict[str, list[Rule]]) -> str:
     from clfd_bench.metrics.cl import acc, rem
 
     names = list(scenarios)
-    per = {name: _matrices(paths, rules) for name, rules in scenarios.items()}
-    runs = per[names[0]]
+    runs = _runs(paths)
     head = ("| run | method | recorded | exec ACC today | " + " | ".join(f"{n}" for n in names)
             + " |")
     out = ["Per run, exec ACC (REM); 'recorded': the run's own results.json, made with early-"
            "stopped rollouts (today's rules rescored must equal it under the same simulator):",
            "", head, "|---" * (4 + len(names)) + "|"]
     methods: dict[str, list[list[float]]] = defaultdict(list)
-    for run, (method, today, _, recorded) in runs.items():
+    for run, (method, order, recorded, rs) in runs.items():
+        today = _rates(run, order, rs, None)
         cells = ["–" if recorded is None else f"{recorded:.2f}",
                  f"{acc(today):.2f} ({rem(today):.2f})"]
         vals = [acc(today)]
         for n in names:
-            then = per[n][run][2]
+            then = _rates(run, order, rs, scenarios[n])
             cells.append(f"{acc(then):.2f} ({rem(then):.2f})")
             vals.append(acc(then))
         methods[method].append(vals)

@@ -59,7 +59,10 @@ from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make
 from clfd_bench.runs import TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE, RunDir, find_runs
 
 MANIFEST = "MANIFEST.json"
-LEFT_OUT = ("checkpoint.pt", "checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE)
+#: What a partial run's archive leaves out (its checkpoint.pt goes in); a finished one's
+#: leaves its checkpoint out too (LEFT_OUT).
+PARTIAL_LEFT_OUT = ("checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE)
+LEFT_OUT = ("checkpoint.pt", *PARTIAL_LEFT_OUT)
 
 
 def _manifest(keep: Path) -> dict:
@@ -96,9 +99,7 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
                        else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
                 print(f"  {key}: not kept (unfinished, {tasks} tasks learned; {why})")
                 continue
-            # checkpoint.pt goes in
-            sha = _archive(run, keep, key,
-                           left_out=("checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE))
+            sha = _archive(run, keep, key, left_out=PARTIAL_LEFT_OUT)
             manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
         else:
             print(f"  {key}: not kept ({state.reason or state.state})")
