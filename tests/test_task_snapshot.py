@@ -149,6 +149,21 @@ def test_the_stop_rule_and_its_lr_decays_resume(tmp_path, cut_after):
     assert _same(tmp_path / "ref", tmp_path / "cut")
 
 
+def test_a_task_refined_by_refine_gap_resumes(tmp_path, cut_after):
+    """With ``refine_gap`` past every gap, each task ends with finer solver steps under a
+    fresh stop rule; a cut in that last phase resumes with its steps, gaps and rule."""
+    config = _config("hn", overrides=("stop_window=3", "stop_rel=0.3", "stop_decays=1",
+                                      "horizon_ramp=0", "horizon_start=1", "iterations=300",
+                                      "refine_gap=1e-12"))
+    run_training(config, tmp_path / "ref", log=None, snapshot_every=0)
+    ref = RunDir(tmp_path / "ref").load_results()
+    iterations = ref["iterations_by_part"]["position"]
+    assert min(ref["substeps_by_part"]["position"]) > 1, "both tasks should be refined"
+    _cut_and_resume(config, tmp_path / "cut", cut_after, iterations[0] - 1 + iterations[1] - 2)
+    assert _same(tmp_path / "ref", tmp_path / "cut")
+    assert _results(tmp_path / "cut") == _results(tmp_path / "ref")
+
+
 @pytest.mark.parametrize("method", ["hn", "sg"])
 def test_a_pose_run_resumes_between_and_inside_its_two_models(method, tmp_path, cut_after):
     """RoboTasks learns a position and an orientation model per task: a cut while the

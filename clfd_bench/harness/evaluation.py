@@ -224,7 +224,10 @@ def results_document(
             ``final_loss_by_part``; optionally ``train_cpu_s`` (``[M]``, this process's CPU
             seconds per task, None where unknown; absent for external predictions) and
             ``solver_gap_by_part`` (per task, :meth:`~clfd_bench.harness.learner.PartLearner.
-            solver_gap`: the fine solution's distance from the training solver's).
+            solver_gap`: the fine solution's distance from the training solver's), and with
+            it ``substeps_by_part`` (per task, the solver steps per interval its training
+            ended with) and ``refine_gaps_by_part`` (per task, the gaps ``refine_gap``
+            measured, ``[]`` when off).
         complete: every task of the run is learned.
         provenance: what ``results.json`` records as ``provenance``.
         checkpoint: the checkpoint file relative to the run directory (None: none).
@@ -259,6 +262,8 @@ def results_document(
         "iterations_by_part": state.get("iterations_by_part"),
         "final_loss_by_part": state["final_loss_by_part"],
         "solver_gap_by_part": state.get("solver_gap_by_part"),
+        "substeps_by_part": state.get("substeps_by_part"),
+        "refine_gaps_by_part": state.get("refine_gaps_by_part"),
         "num_params": state["num_params"],
         "num_params_by_part": state["num_params_by_part"],
         "stored_samples": state["stored_samples"],

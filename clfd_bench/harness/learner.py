@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -224,7 +225,8 @@ class PartLearner:
         return self.data_states(index, out.double().numpy(), goals)
 
     def solver_gap(self, index: int, task: Task, goals: np.ndarray | None = None,
-                   fine: np.ndarray | None = None) -> float | None:
+                   fine: np.ndarray | None = None, substeps: int | None = None
+                   ) -> float | None:
         """How far task ``index``'s model, integrated as training integrates it, is from the
         same model integrated as predictions are: the largest distance over the demos' starts
         and the training samples (positions: data units; orientation: degrees). A fixed-step
@@ -238,6 +240,8 @@ class PartLearner:
             goals: orientation only, as for :meth:`predict`.
             fine: this part's prediction of the task from its demos' starts over
                 ``task.times`` (:meth:`predict`), if already made; else it is made here.
+            substeps: the training solver's steps per interval (default the config's; a
+                task ``refine_gap`` refined was trained with more).
         """
         cfg = self.cfg
         if cfg.solver not in FIXED_SOLVERS or cfg.batch != "trajectories":
@@ -246,7 +250,10 @@ class PartLearner:
         idx = subsample_index(len(times), cfg.points)
         raw = task.positions if self.kind == "position" else task.quaternions
         starts = np.asarray(raw)[:, 0]
-        coarse = self.predict(index, starts, times[idx], goals, solver=solver_spec(self.cfg))
+        coarse_solver = solver_spec(self.cfg)
+        if substeps is not None:
+            coarse_solver = dataclasses.replace(coarse_solver, substeps=substeps)
+        coarse = self.predict(index, starts, times[idx], goals, solver=coarse_solver)
         if fine is None:
             fine = self.predict(index, starts, times, goals)
         fine = np.asarray(fine)[:, idx]
@@ -354,18 +361,19 @@ class Learner:
         quat = self.parts["orientation"].predict(index, starts[:, 3:], times, goals)
         return np.concatenate([pos, quat], axis=-1)
 
-    def solver_gaps(self, index: int, task: Task, prediction: np.ndarray | None = None
-                    ) -> dict[str, float | None]:
+    def solver_gaps(self, index: int, task: Task, prediction: np.ndarray | None = None,
+                    substeps: Mapping[str, int] | None = None) -> dict[str, float | None]:
         """:meth:`PartLearner.solver_gap` of every part for ``task``'s demos (the goals the
         protocol passes); ``prediction``: :meth:`predict`'s ``[N, T, D]`` for them, if
-        already made (each part's share of it is reused)."""
+        already made (each part's share of it is reused); ``substeps``: per part, the steps
+        per interval its training ended with (default: each config's)."""
         goals = self.demo_goals(task)
         shares = {kind: None for kind in self.parts}
         if prediction is not None:
             shares = ({"position": prediction[..., :3], "orientation": prediction[..., 3:]}
                       if self.is_pose else {"position": prediction})
         return {kind: part.solver_gap(index, task, goals if kind == "orientation" else None,
-                                      shares[kind])
+                                      shares[kind], (substeps or {}).get(kind))
                 for kind, part in self.parts.items()}
 
     def demo_goals(self, task: Task) -> np.ndarray | None:

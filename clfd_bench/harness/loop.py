@@ -59,6 +59,7 @@ from clfd_bench.learning.objective import (
     stacked_trajectory_losses,
     trajectory_loss,
 )
+from clfd_bench.learning.part_config import REFINE_MAX_SUBSTEPS
 from clfd_bench.learning.stop_rule import StopRule
 from clfd_bench.methods.base import Method, StepContext, TaskData
 from clfd_bench.progress import progress
@@ -118,12 +119,18 @@ class TrainStats:
             task early).
         final_loss: the task loss at the last iteration.
         loop_seconds: wall time of the iterations alone.
+        substeps: the solver steps per interval the task ended with (``cfg.substeps``, more
+            where ``refine_gap`` refined it).
+        refine_gaps: with ``refine_gap`` on, the solver gap measured each time the stop rule
+            ended the task (positions: data units; orientations: degrees); empty when off.
     """
 
     seconds: float
     iterations: int
     final_loss: float
     loop_seconds: float
+    substeps: int = 1
+    refine_gaps: tuple[float, ...] = ()
 
     @property
     def iterations_per_s(self) -> float:
@@ -160,16 +167,18 @@ def lr_factor(cfg: PartConfig, iteration: int) -> float:
     return factor
 
 
-def stop_rule(cfg: PartConfig) -> StopRule | None:
+def stop_rule(cfg: PartConfig, start: int | None = None) -> StopRule | None:
     """The stop rule of ``cfg`` (None: ``stop_window = 0``, off). Its first window starts
-    when the learning-rate warm-up and the growth of a ``trajectories`` batch's horizon are
-    over."""
+    at ``start``; by default when the learning-rate warm-up and the growth of a
+    ``trajectories`` batch's horizon are over."""
     if cfg.stop_window <= 0:
         return None
-    start = cfg.lr_warmup * cfg.iterations
-    if cfg.batch == "trajectories" and cfg.horizon_start < 1.0:
-        start = max(start, cfg.horizon_ramp * cfg.iterations)
-    return StopRule(cfg.stop_window, cfg.stop_rel, cfg.stop_decays, math.ceil(start))
+    if start is None:
+        begin = cfg.lr_warmup * cfg.iterations
+        if cfg.batch == "trajectories" and cfg.horizon_start < 1.0:
+            begin = max(begin, cfg.horizon_ramp * cfg.iterations)
+        start = math.ceil(begin)
+    return StopRule(cfg.stop_window, cfg.stop_rel, cfg.stop_decays, start)
 
 
 @dataclass
@@ -178,7 +187,10 @@ class TaskRun:
     :func:`train_task`, the global torch RNG state the run's hooks see (None: the current
     one; runs trained together each keep their own), and ``resume``: a snapshot of this task
     to continue from (``train_tasks``' ``on_snapshot``, or :func:`finished_snapshot`), given
-    to a run whose method, data, generator and RNG state are those of the task's start."""
+    to a run whose method, data, generator and RNG state are those of the task's start;
+    ``gap``: ``gap(substeps)``, the solver gap of the task's model integrated with that many
+    steps per interval (:meth:`~clfd_bench.harness.learner.PartLearner.solver_gap`), which
+    ``cfg.refine_gap > 0`` needs."""
 
     method: Method
     task: int
@@ -188,6 +200,7 @@ class TaskRun:
     desc: str = ""
     rng_state: torch.Tensor | None = None
     resume: dict[str, Any] | None = None
+    gap: Callable[[int], float | None] | None = None
 
 
 def finished_snapshot(run: TaskRun, stats: TrainStats) -> dict[str, Any]:
@@ -225,12 +238,15 @@ class _Lane:
             run.method.train()
             run.method.on_task_start(run.task, run.data)
         self.optimizer = _adam(run.method.trainable(run.task), run.cfg.lr)
-        stop = self.stop = stop_rule(run.cfg)
+        self.stop = stop_rule(run.cfg)
         cfg = run.cfg
-        if stop is None:
+        if cfg.refine_gap > 0 and run.gap is None:
+            raise ValueError("refine_gap > 0 needs the task's solver gap (TaskRun.gap)")
+        self.substeps, self.refine_gaps = cfg.substeps, []
+        if self.stop is None:
             factor = lambda it: lr_factor(cfg, it)  # noqa: E731
-        else:
-            factor = lambda it: lr_factor(cfg, it) * stop.lr_scale  # noqa: E731
+        else:  # self.stop, not a local: refining replaces the rule
+            factor = lambda it: lr_factor(cfg, it) * self.stop.lr_scale  # noqa: E731
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, factor)
         self.loss_value = float("nan")
         if resume:
@@ -256,6 +272,12 @@ class _Lane:
         self.rng = snap["rng"]
         self.loss_value = float(snap["loss_value"])
         self.it = int(snap["iteration"])
+        refine = snap.get("refine")  # absent: not refined (or a snapshot from before)
+        if refine is not None:
+            self.stop = stop_rule(self.cfg, int(refine["stop_start"]))
+            self.stop.load_state(snap["stop"])
+            self._set_substeps(int(refine["substeps"]))
+            self.refine_gaps = [float(g) for g in refine["gaps"]]
 
     def _load_finished(self, snap: dict[str, Any]) -> None:
         """Take a learned task's snapshot (:func:`finished_snapshot`) as this lane's end."""
@@ -264,7 +286,8 @@ class _Lane:
         method.load_step_state(snap["step_state"])
         method.eval()
         self.rng = snap["rng"]
-        self.stats = TrainStats(**snap["stats"])
+        # a snapshot from before the refinement was recorded: the config's steps
+        self.stats = TrainStats(**({"substeps": self.cfg.substeps} | snap["stats"]))
         self.done = self.it = self.stats.iterations
         self.finished = True
 
@@ -279,13 +302,45 @@ class _Lane:
             return finished_snapshot(run, self.stats)
         now = time.perf_counter()
         method = self.run.method
-        return {"finished": False, "iteration": self.it, "method": method.state_dict(),
+        snap = {"finished": False, "iteration": self.it, "method": method.state_dict(),
                 "step_state": method.step_state(), "optimizer": self.optimizer.state_dict(),
                 "schedule": self.schedule.state_dict(),
                 "stop": None if self.stop is None else self.stop.state(),
                 "generator": self.run.generator.get_state(), "rng": self.rng,
                 "loss_value": self.loss_value, "seconds": now - self.start,
                 "loop_seconds": now - self.loop_start}
+        if self.refine_gaps:
+            snap["refine"] = {"substeps": self.substeps, "gaps": list(self.refine_gaps),
+                              "stop_start": self.stop.start}
+        return snap
+
+    def _set_substeps(self, substeps: int) -> None:
+        self.substeps = substeps
+        self.solver = dataclasses.replace(self.solver, substeps=substeps)
+
+    def refine(self, it: int, stopped: bool) -> bool:
+        """The task ended after iteration ``it`` (``stopped``: by the stop rule, else at the
+        cap): with ``refine_gap`` on, measure and record the solver gap; when the stop rule
+        ended the task and the gap is above ``refine_gap`` (and steps and iterations are
+        left), double the solver steps and give the task a fresh stop rule from the next
+        iteration. True: the task trains on."""
+        cfg, run = self.cfg, self.run
+        if cfg.refine_gap <= 0:
+            return False
+        with self.own_rng():
+            gap = run.gap(self.substeps)
+            run.method.train()
+        if gap is None:
+            return False
+        self.refine_gaps.append(gap)
+        if (not stopped or gap <= cfg.refine_gap or 2 * self.substeps > REFINE_MAX_SUBSTEPS
+                or it + 1 >= cfg.iterations):
+            return False
+        self._set_substeps(2 * self.substeps)
+        self.stop = stop_rule(cfg, it + 1)
+        self.bar.set_postfix(loss=f"{self.loss_value:.2e}", gap=f"{gap:.3g}",
+                             substeps=self.substeps, refresh=False)
+        return True
 
     def own_rng(self):
         """A context in which the global torch RNG is this run's."""
@@ -333,6 +388,8 @@ class _Lane:
             self.bar.set_postfix(loss=f"{self.loss_value:.2e}", refresh=False)
         self.bar.update(1)
         if stopping or it == cfg.iterations - 1:
+            if self.refine(it, stopping):
+                return
             self.done = it + 1
             self.end()
 
@@ -344,7 +401,7 @@ class _Lane:
             run.method.on_task_end(run.task, run.data)
             run.method.eval()
         self.stats = TrainStats(time.perf_counter() - self.start, self.done, self.loss_value,
-                                loop_seconds)
+                                loop_seconds, self.substeps, tuple(self.refine_gaps))
         self.finished = True
 
 

@@ -197,6 +197,8 @@ def _empty_state(task_names: list[str], metrics: tuple[str, ...], parts: list[st
         "iterations_by_part": {p: [] for p in parts},
         "final_loss_by_part": {p: [] for p in parts},
         "solver_gap_by_part": {p: [] for p in parts},
+        "substeps_by_part": {p: [] for p in parts},
+        "refine_gaps_by_part": {p: [] for p in parts},
         "num_params": [],
         "num_params_by_part": {p: [] for p in parts},
         "stored_samples": [],
@@ -300,6 +302,11 @@ class _ProtocolRun:
             # runs saved before the solver gap was measured: unknown for their tasks
             saved_state.setdefault("solver_gap_by_part", {
                 kind: [None] * done for kind in learner.parts})
+            # runs saved before refine_gap existed: every task at the config's steps
+            saved_state.setdefault("substeps_by_part", {
+                kind: [config.part(kind).substeps] * done for kind in learner.parts})
+            saved_state.setdefault("refine_gaps_by_part", {
+                kind: [[] for _ in range(done)] for kind in learner.parts})
             if done > n_tasks:
                 raise RunMismatchError(
                     f"{out} already holds {done} learned tasks, more than the {n_tasks} asked "
@@ -396,9 +403,14 @@ class _ProtocolRun:
         data = part.add_next(i, task)
         # handed over, not kept: a learned part comes back through part_learned
         resume = self.snapshot_parts.pop(kind, None) if i == self.done else None
+        goals = self.learner.demo_goals(task) if kind == "orientation" else None
+
+        def gap(substeps: int) -> float | None:  # what refine_gap compares
+            return part.solver_gap(i, task, goals, substeps=substeps)
+
         return TaskRun(part.method, i, data, part.cfg, generator,
                        f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state(),
-                       resume)
+                       resume, gap)
 
     def record_part(self, kind: str, stats: TrainStats, share: int = 1) -> None:
         """What training part ``kind`` on the current task took; ``share``: the runs it was
@@ -413,6 +425,8 @@ class _ProtocolRun:
         state["iterations_per_s_by_part"][kind].append(stats.iterations_per_s)
         state["iterations_by_part"][kind].append(stats.iterations)
         state["final_loss_by_part"][kind].append(stats.final_loss)
+        state["substeps_by_part"][kind].append(stats.substeps)
+        state["refine_gaps_by_part"][kind].append(list(stats.refine_gaps))
         state["num_params_by_part"][kind].append(self.learner.parts[kind].method.num_params())
 
     def finish_task(self, i: int, cpu_s: float, lockstep: int) -> None:
@@ -444,7 +458,8 @@ class _ProtocolRun:
             preds.append(pred)
             for metric, values in task_errors(tj, pred).items():
                 state["errors"][metric][i][j] = values
-        for kind, gap in learner.solver_gaps(i, task, preds[i]).items():
+        substeps = {kind: values[-1] for kind, values in state["substeps_by_part"].items()}
+        for kind, gap in learner.solver_gaps(i, task, preds[i], substeps).items():
             state["solver_gap_by_part"][kind].append(gap)
         self.run.save_predictions(i, preds)
         headers, tensors = _checkpoint_payload(learner)

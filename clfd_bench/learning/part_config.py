@@ -27,6 +27,7 @@ __all__ = [
     "PART_FIELDS",
     "PART_RULES",
     "PartConfig",
+    "REFINE_MAX_SUBSTEPS",
     "SNODE_KEYS",
     "Rule",
     "TIME_AXES",
@@ -164,6 +165,9 @@ PART_RULES: dict[str, Rule] = {
                      "smoothed loss below which a window is a plateau"),
     "stop_decays": Rule("int", lo=0, what="plateaus that divide the lr by 10 before one "
                         "stops the task"),
+    "refine_gap": Rule("float", lo=0, what="solver gap (positions: data units; orientations: "
+                       "degrees) above which a stopped task trains on with twice the solver "
+                       "steps; 0: off"),
     # networks
     "node_hidden": Rule("ints", lo=1, hi=_SIZE, what="hidden widths of the NODE"),
     "activation": Rule("str", choices=tuple(ACTIVATIONS)),
@@ -235,12 +239,28 @@ def _segments_ok(c: Mapping[str, Any]) -> bool:
     return not uses_segments or (c["solver"] == "rk4" and c["solver_backend"] == "fused")
 
 
+REFINE_MAX_SUBSTEPS = 8
+"""The most solver steps per interval ``refine_gap`` refines a task to (three doublings of
+``substeps = 1``; each doubles the cost of an iteration)."""
+
+
+def _refine_ok(c: Mapping[str, Any]) -> bool:
+    return c["refine_gap"] == 0 or (c["stop_window"] > 0 and c["batch"] == "trajectories"
+                                    and c["solver"] in FIXED_SOLVERS)
+
+
 PART_CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint(
         ("segments", "batch", "horizon_start", "solver", "solver_backend"), _segments_ok,
         "segments (batch = trajectories, segments = true, horizon_start < 1) need solver = "
         "rk4 with solver_backend = fused; set segments=false, or solver=rk4 and "
         "solver_backend=fused",
+    ),
+    Constraint(
+        ("refine_gap", "stop_window", "batch", "solver"), _refine_ok,
+        "refine_gap > 0 refines a task's fixed solver steps once its stop rule ends it, so it "
+        "needs stop_window > 0, batch = trajectories and a fixed-step solver (rk4, midpoint, "
+        "euler); set refine_gap=0, or those",
     ),
 )
 """Rules between values, checked by :class:`PartConfig` and ``resolve_config``."""
@@ -263,6 +283,13 @@ class PartConfig:
         ``stop_decays`` plateaus divide the lr by 10, the next stops the task, so
         ``iterations`` becomes a cap. ``stop_window = 0`` (the default; paper, fast,
         smoke): off. Left out of saved configs at their defaults.
+        refine_gap: the solver gap (:meth:`~clfd_bench.harness.learner.PartLearner.solver_gap`;
+        positions in data units, orientations in degrees) a task may end with. When the stop
+        rule ends a task whose gap is larger, the task trains on from its weights with
+        twice the solver steps per interval (``substeps``) and a fresh stop rule, until the
+        gap is at most ``refine_gap``, the steps reach :data:`REFINE_MAX_SUBSTEPS` or the
+        task's ``iterations`` are spent (:mod:`clfd_bench.harness.loop`). 0 (the default):
+        off, and left out of saved configs.
     Batches (:mod:`clfd_bench.learning.batches`):
         batch: ``windows`` (paper: ``tsub`` consecutive samples) or ``trajectories`` (whole
         trajectories subsampled to ``points``, horizon growing from ``horizon_start`` over the
@@ -311,6 +338,7 @@ class PartConfig:
     stop_window: int = 0
     stop_rel: float = 0.01
     stop_decays: int = 0
+    refine_gap: float = 0.0
     activation: str = "elu"
     task_emb_dim: int = 0
     hnet_hidden: tuple[int, ...] = ()
@@ -427,6 +455,7 @@ SNODE_KEYS = ("lyap_hidden", "snode_alpha", "snode_eps", "snode_rehu", "snode_cl
 """The stable NODE's keys: left out of :meth:`PartConfig.to_dict` at their defaults, so the
 saved configs of NODE^T/NODE^I runs, and of runs made before they existed, do not change."""
 
-OMITTED_AT_DEFAULT = (*SNODE_KEYS, "lr_warmup", "stop_window", "stop_rel", "stop_decays")
+OMITTED_AT_DEFAULT = (*SNODE_KEYS, "lr_warmup", "stop_window", "stop_rel", "stop_decays",
+                      "refine_gap")
 """Keys :meth:`PartConfig.to_dict` leaves out at their defaults (added after runs had been
 saved; a run without them has the defaults)."""
