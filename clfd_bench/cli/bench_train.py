@@ -114,8 +114,9 @@ def bench_method(
     rows = []
     for kind, part in learners[0].parts.items():
         budget = part.cfg.iterations
-        short = dataclasses.replace(part.cfg, iterations=max(1, warmup))
-        timed = dataclasses.replace(part.cfg, iterations=iterations)
+        # the speed of an iteration at the config's steps: refine_gap's refinement is off
+        short = dataclasses.replace(part.cfg, iterations=max(1, warmup), refine_gap=0.0)
+        timed = dataclasses.replace(part.cfg, iterations=iterations, refine_gap=0.0)
         for index in range(max(tasks) + 1):
             units = []
             for r, learner in enumerate(learners):
