@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
+import clfd_bench.harness.loop as loop
 from clfd_bench.harness.config import ConfigError, resolve_config
 from clfd_bench.harness.learner import PartLearner
 from clfd_bench.harness.protocol import run_training
@@ -20,16 +22,17 @@ STOP_EARLY = ("stop_window=3", "stop_rel=0.3", "stop_decays=1", "horizon_ramp=0"
 """A stop rule that ends smoke tasks after a few windows, well before the cap."""
 
 
-def _config(*overrides: str, method: str = "sg", dataset: str = "helloworld"):
-    return TrainSpec(method, dataset, "smoke", seed=0, tasks=2,
+def _config(*overrides: str, method: str = "sg", dataset: str = "helloworld", tasks: int = 2):
+    return TrainSpec(method, dataset, "smoke", seed=0, tasks=tasks,
                      overrides=STOP_EARLY + overrides).config()
 
 
 def _train(tmp_path, name: str, *overrides: str, **kw) -> tuple[dict, dict]:
     out = tmp_path / name
-    run_training(_config(*overrides, **kw), out, log=None)
+    config = _config(*overrides, **kw)
+    run_training(config, out, log=None)
     run = RunDir(out)
-    return run.load_results(), run.load_predictions(1)
+    return run.load_results(), run.load_predictions(config.tasks - 1)
 
 
 @pytest.fixture
@@ -54,6 +57,36 @@ def test_a_gap_above_the_bound_is_refined_until_within_it(tmp_path, halving_gap)
         assert on["iterations_by_part"]["position"][i] > off["iterations_by_part"]["position"][i]
     assert off["substeps_by_part"]["position"] == [1, 1]
     assert off["refine_gaps_by_part"]["position"] == [[], []]
+
+
+def test_a_refined_phase_starts_at_the_undecayed_lr(tmp_path, halving_gap, monkeypatch):
+    """The old rule's lr decays end with it: at a constant lr the stop rule's decayed
+    stretches are whole windows (3 iterations here), the first of a refined phase included."""
+    lrs: list[float] = []
+    original = loop._adam
+
+    def recording_adam(params, lr):
+        optimizer = original(params, lr)
+        optimizer.register_step_pre_hook(
+            lambda opt, args, kwargs: lrs.append(opt.param_groups[0]["lr"]))
+        return optimizer
+
+    monkeypatch.setattr(loop, "_adam", recording_adam)
+    on, _ = _train(tmp_path, "on", "refine_gap=0.003", "lr_schedule=constant", "lr_warmup=0",
+                   tasks=1)
+    assert on["substeps_by_part"]["position"] == [4]
+    base = max(lrs)
+    decayed = [lr < base for lr in lrs]
+    stretches, length = [], 0
+    for low in decayed + [False]:
+        if low:
+            length += 1
+        elif length:
+            stretches.append(length)
+            length = 0
+    assert len(stretches) == 3, stretches  # one decay per phase: 1 step, then 2 and 4
+    assert all(n % 3 == 0 for n in stretches), stretches
+    assert torch.isclose(torch.tensor(min(lrs)), torch.tensor(base / 10))
 
 
 def test_refining_stops_at_the_most_steps(tmp_path, halving_gap):

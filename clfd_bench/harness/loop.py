@@ -338,6 +338,10 @@ class _Lane:
             return False
         self._set_substeps(2 * self.substeps)
         self.stop = stop_rule(cfg, it + 1)
+        # the schedule already set the next iteration's lr with the old rule's decays
+        for group, base, factor in zip(self.optimizer.param_groups, self.schedule.base_lrs,
+                                       self.schedule.lr_lambdas, strict=True):
+            group["lr"] = base * factor(self.schedule.last_epoch)
         self.bar.set_postfix(loss=f"{self.loss_value:.2e}", gap=f"{gap:.3g}",
                              substeps=self.substeps, refresh=False)
         return True
