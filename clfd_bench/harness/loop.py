@@ -243,10 +243,12 @@ class _Lane:
         if cfg.refine_gap > 0 and run.gap is None:
             raise ValueError("refine_gap > 0 needs the task's solver gap (TaskRun.gap)")
         self.substeps, self.refine_gaps = cfg.substeps, []
+        self.lr_carry = 1.0  # the lr decays of the rules refining replaced
         if self.stop is None:
             factor = lambda it: lr_factor(cfg, it)  # noqa: E731
         else:  # self.stop, not a local: refining replaces the rule
-            factor = lambda it: lr_factor(cfg, it) * self.stop.lr_scale  # noqa: E731
+            factor = lambda it: (  # noqa: E731
+                lr_factor(cfg, it) * self.lr_carry * self.stop.lr_scale)
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, factor)
         self.loss_value = float("nan")
         if resume:
@@ -278,6 +280,7 @@ class _Lane:
             self.stop.load_state(snap["stop"])
             self._set_substeps(int(refine["substeps"]))
             self.refine_gaps = [float(g) for g in refine["gaps"]]
+            self.lr_carry = float(refine["lr_carry"])
 
     def _load_finished(self, snap: dict[str, Any]) -> None:
         """Take a learned task's snapshot (:func:`finished_snapshot`) as this lane's end."""
@@ -311,7 +314,7 @@ class _Lane:
                 "loop_seconds": now - self.loop_start}
         if self.refine_gaps:
             snap["refine"] = {"substeps": self.substeps, "gaps": list(self.refine_gaps),
-                              "stop_start": self.stop.start}
+                              "stop_start": self.stop.start, "lr_carry": self.lr_carry}
         return snap
 
     def _set_substeps(self, substeps: int) -> None:
@@ -323,7 +326,7 @@ class _Lane:
         cap): with ``refine_gap`` on, measure and record the solver gap; when the stop rule
         ended the task and the gap is above ``refine_gap`` (and steps and iterations are
         left), double the solver steps and give the task a fresh stop rule from the next
-        iteration. True: the task trains on."""
+        iteration, at the lr the old one left. True: the task trains on."""
         cfg, run = self.cfg, self.run
         if cfg.refine_gap <= 0:
             return False
@@ -337,11 +340,11 @@ class _Lane:
                 or it + 1 >= cfg.iterations):
             return False
         self._set_substeps(2 * self.substeps)
+        # the lr goes on where the old rule left it (the weights are near a solution:
+        # refining fine-tunes them, it does not start the task again); the new rule may
+        # lower it further
+        self.lr_carry *= self.stop.lr_scale
         self.stop = stop_rule(cfg, it + 1)
-        # the schedule already set the next iteration's lr with the old rule's decays
-        for group, base, factor in zip(self.optimizer.param_groups, self.schedule.base_lrs,
-                                       self.schedule.lr_lambdas, strict=True):
-            group["lr"] = base * factor(self.schedule.last_epoch)
         self.bar.set_postfix(loss=f"{self.loss_value:.2e}", gap=f"{gap:.3g}",
                              substeps=self.substeps, refresh=False)
         return True
