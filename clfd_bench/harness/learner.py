@@ -367,14 +367,20 @@ class Learner:
         protocol passes); ``prediction``: :meth:`predict`'s ``[N, T, D]`` for them, if
         already made (each part's share of it is reused); ``substeps``: per part, the steps
         per interval its training ended with (default: each config's)."""
-        goals = self.demo_goals(task)
         shares = {kind: None for kind in self.parts}
         if prediction is not None:
             shares = ({"position": prediction[..., :3], "orientation": prediction[..., 3:]}
                       if self.is_pose else {"position": prediction})
-        return {kind: part.solver_gap(index, task, goals if kind == "orientation" else None,
-                                      shares[kind], (substeps or {}).get(kind))
-                for kind, part in self.parts.items()}
+        return {kind: self.solver_gap(kind, index, task, shares[kind],
+                                      (substeps or {}).get(kind))
+                for kind in self.parts}
+
+    def solver_gap(self, kind: str, index: int, task: Task, fine: np.ndarray | None = None,
+                   substeps: int | None = None) -> float | None:
+        """:meth:`PartLearner.solver_gap` of part ``kind`` for ``task``'s demos, with the
+        goals the protocol passes (``fine``, ``substeps``: as there)."""
+        goals = self.demo_goals(task) if kind == "orientation" else None
+        return self.parts[kind].solver_gap(index, task, goals, fine, substeps)
 
     def demo_goals(self, task: Task) -> np.ndarray | None:
         """The goals the protocol passes for ``task``'s demos (None for planar data)."""

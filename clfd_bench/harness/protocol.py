@@ -403,10 +403,9 @@ class _ProtocolRun:
         data = part.add_next(i, task)
         # handed over, not kept: a learned part comes back through part_learned
         resume = self.snapshot_parts.pop(kind, None) if i == self.done else None
-        goals = self.learner.demo_goals(task) if kind == "orientation" else None
 
         def gap(substeps: int) -> float | None:  # what refine_gap compares
-            return part.solver_gap(i, task, goals, substeps=substeps)
+            return self.learner.solver_gap(kind, i, task, substeps=substeps)
 
         return TaskRun(part.method, i, data, part.cfg, generator,
                        f"{self.label} {kind} task {i} {task.name}", torch.get_rng_state(),

@@ -286,7 +286,8 @@ class PartConfig:
         refine_gap: the solver gap (:meth:`~clfd_bench.harness.learner.PartLearner.solver_gap`;
         positions in data units, orientations in degrees) a task may end with. When the stop
         rule ends a task whose gap is larger, the task trains on from its weights with
-        twice the solver steps per interval (``substeps``) and a fresh stop rule, until the
+        twice the solver steps per interval (``substeps``), at the learning rate it ended
+        with, under a fresh stop rule (which may lower it further), until the
         gap is at most ``refine_gap``, the steps reach :data:`REFINE_MAX_SUBSTEPS` or the
         task's ``iterations`` are spent (:mod:`clfd_bench.harness.loop`). 0 (the default):
         off, and left out of saved configs.
