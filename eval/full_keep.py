@@ -23,11 +23,15 @@ machine (CHN HelloWorld on an AMD EPYC: about 1 000 s of CPU a letter, 2 h for s
 does), so the next machine continues it instead of starting again; the manifest marks it
 ``"partial": true``. Only checkpoints up to ``--max-mb`` (default 20) are kept, because each
 one stays in the repository's history: CHN's HelloWorld checkpoint is 7.6 MB, a RoboTasks SG
-run's four networks about 100 MB (refused, said in one line). Stop the run first (kill it: a
-killed run keeps its last finished task); a checkpoint written while it is archived would not
-match its results. ``restore`` extracts a partial run with its checkpoint and does not execute
-it again: the grid resumes it, trains what is left and executes it. Once it is done, ``save``
-archives it again without its checkpoint, in place of the partial archive. A run's
+run's four networks about 100 MB (refused, said in one line). The run may go on training
+meanwhile: its files are copied first, and the copy is kept only when its checkpoint, its
+``results.json`` and its predictions describe the same finished tasks (a task that finishes
+during the copy makes ``save`` copy again, up to three times, else skip the run for this
+time); ``eval/full_runs.sh`` does it every 30 minutes while its runs train, so a machine that
+ends without warning loses at most the task being learned. ``restore`` extracts a partial run
+with its checkpoint and does not execute it again: the grid resumes it, trains what is left
+and executes it. Once it is done, ``save`` archives it again without its checkpoint, in place
+of the partial archive. A run's
 ``task_snapshot.pt`` (the task being learned, with the optimiser's moments: about three times
 its checkpoint, over 100 MB for a RoboTasks run) is never kept, nor its note: it resumes the
 task mid-way on the machine that wrote it, which sessions on a machine that lives on use (a
@@ -47,18 +51,26 @@ checkpoint the grid could not resume such a run, it would train it from the star
 from __future__ import annotations
 
 import argparse
+import contextlib
+import fcntl
 import json
+import os
 import shutil
 import sys
 import tempfile
 from pathlib import Path
 
 from clfd_bench.execution.fingerprint import sim_fingerprint
+from clfd_bench.harness.checkpoint import CheckpointError, decode_checkpoint
 from clfd_bench.io import atomic_write_json, sha256_file
 from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
 from clfd_bench.runs import TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE, RunDir, find_runs
 
 MANIFEST = "MANIFEST.json"
+#: Held while ``save`` writes into KEEP (full_runs.sh's periodic save and a stage's save).
+KEEP_LOCK = ".full_keep.lock"
+#: How many times ``save --partial`` copies a training run before it skips it this time.
+COPY_TRIES = 3
 #: What a partial run's archive leaves out (its checkpoint.pt goes in); a finished one's
 #: leaves its checkpoint out too (LEFT_OUT).
 PARTIAL_LEFT_OUT = ("checkpoints", TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE)
@@ -76,6 +88,22 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
     the next restore needs no execution); with ``partial``, also the unfinished runs that
     learned a task since they were last kept, with their checkpoint when it is at most
     ``max_mb`` MB (module docstring). Returns how many it archived."""
+    with _locked(keep):
+        return _save(out, keep, partial, max_mb)
+
+
+@contextlib.contextmanager
+def _locked(keep: Path):
+    """Holds ``KEEP/.full_keep.lock`` (waiting for another ``save`` to finish)."""
+    fd = os.open(keep / KEEP_LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+def _save(out: Path, keep: Path, partial: bool, max_mb: float) -> int:
     manifest, fingerprint, saved = _manifest(keep), sim_fingerprint(), 0
     for run in find_runs(out):
         key = run.path.relative_to(out).as_posix()
@@ -99,7 +127,12 @@ def save(out: Path, keep: Path, partial: bool = False, max_mb: float = 20.0) -> 
                        else f"checkpoint {mb:.1f} MB > --max-mb {max_mb:g}")
                 print(f"  {key}: not kept (unfinished, {tasks} tasks learned; {why})")
                 continue
-            sha = _archive(run, keep, key, left_out=PARTIAL_LEFT_OUT)
+            copied = _archive_consistent(run, keep, key)
+            if copied is None:
+                print(f"  {key}: not kept this time (a task finished during each of "
+                      f"{COPY_TRIES} copies; the next save tries again)")
+                continue
+            sha, results, tasks = copied
             manifest[key] = _entry(keep, key, sha, results, tasks) | {"partial": True}
         else:
             print(f"  {key}: not kept ({state.reason or state.state})")
@@ -118,8 +151,37 @@ def _archive(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]) -> st
     archive.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
         staging = Path(tmp) / run.path.name
-        shutil.copytree(run.path, staging, ignore=shutil.ignore_patterns(*left_out))
+        _copy_run(run.path, staging, left_out)
         return make_archive(staging, archive)
+
+
+def _copy_run(source: Path, staging: Path, left_out: tuple[str, ...]) -> None:
+    shutil.copytree(source, staging, ignore=shutil.ignore_patterns(*left_out))
+
+
+def _archive_consistent(run: RunDir, keep: Path, key: str) -> tuple[str, dict, int] | None:
+    """A partial run's archive, with its checkpoint, from a copy whose files agree (the run
+    may be training: a task finishing during the copy leaves a checkpoint of one more task
+    than the copied ``results.json``, or predictions missing). Returns ``(sha256, results,
+    tasks)`` of the copy archived, or None when ``COPY_TRIES`` copies all disagreed."""
+    archive = keep / f"{key}.tar.xz"
+    archive.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(COPY_TRIES):
+        with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
+            staging = Path(tmp) / run.path.name
+            _copy_run(run.path, staging, PARTIAL_LEFT_OUT)
+            copy = RunDir(staging)
+            try:
+                results = copy.read_results() or {}
+                header, _ = decode_checkpoint(copy.read_checkpoint(), str(copy.checkpoint_path))
+            except (OSError, ValueError, CheckpointError):
+                continue
+            tasks = int(results.get("tasks_done") or 0)
+            learned = len(header["state"]["train_time_s"])
+            if tasks == learned and all(copy.predictions_path(i).is_file()
+                                        for i in range(tasks)):
+                return make_archive(staging, archive), results, tasks
+    return None
 
 
 def _entry(keep: Path, key: str, sha: str, results: dict, tasks: int) -> dict:
@@ -185,7 +247,8 @@ def main() -> int:
     s.add_argument("out", type=Path)
     s.add_argument("keep", type=Path)
     s.add_argument("--partial", action="store_true",
-                   help="also keep unfinished runs with their checkpoint (stop them first)")
+                   help="also keep unfinished runs with their checkpoint (they may be "
+                        "training: a copy whose files agree is kept)")
     s.add_argument("--max-mb", type=float, default=20.0,
                    help="largest checkpoint --partial keeps, in MB (default 20)")
     r = sub.add_parser("restore", help="extract KEEP's runs missing under OUT")

@@ -24,9 +24,12 @@
 # executed again), and after every stage the finished ones not kept yet, and the kept ones
 # executed again, are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
 # "none" keeps nothing). Commit what it adds there.
-# A run still training when the machine must go: kill this script and its runs, then
-# `python eval/full_keep.py save --partial OUT KEEP` keeps it with its checkpoint (up to
-# 20 MB), and the next machine's restore lets the grid resume it after its last task.
+# While the stages run, every CLFD_FULL_KEEP_EVERY seconds (default 1800; 0: never) the runs
+# still training that learned a task since are kept too, with their checkpoint (up to 20 MB:
+# `full_keep.py save --partial`, which copies a run that trains until its files agree), so a
+# machine that ends without warning loses at most each run's task being learned; the next
+# machine's restore lets the grid resume them after their last task. At a session's end run
+# the same save once more by hand (no need to stop the runs) and commit what it adds.
 set -uo pipefail
 # Everything runs inside main, called on the last line: bash parses the whole file before the
 # first run starts, so editing this file while it runs cannot change what it does.
@@ -40,6 +43,13 @@ stage() {  # stage N DATASET SEEDS
     --profile "$profile" --methods "$methods" --seeds "$seeds" --workers 1 --out "$out/$dataset"
   echo "[full_runs] $(date -u +%FT%TZ) stage $n: exit $?"
   keep save
+}
+
+keeper() {  # every $1 seconds, keep the runs that learned a task since (with checkpoints)
+  while sleep "$1"; do
+    python "$repo/eval/full_keep.py" save --partial "$out" "$keep_dir" 2>&1 \
+      | sed "s/^/[full_runs keeper $(date -u +%FT%TZ)] /"
+  done
 }
 
 keep() {  # keep save|restore
@@ -79,6 +89,12 @@ main() {
     "($(git -C "$repo" rev-parse --short HEAD 2>/dev/null)), out $out, kept runs $keep_dir"
   keep restore || { echo "[full_runs] the kept runs cannot be restored; not starting" >&2
                     return 2; }
+  local every="${CLFD_FULL_KEEP_EVERY:-1800}"
+  if [ "$keep_dir" != none ] && [ "$every" != 0 ]; then
+    keeper "$every" &
+    keeper_pid=$!  # global: the EXIT trap runs after main returns
+    trap 'pkill -P "$keeper_pid" 2>/dev/null; kill "$keeper_pid" 2>/dev/null' EXIT
+  fi
   stage 1 helloworld 0
   stage 2 robotasks 0
   stage 5 robotasks9 0

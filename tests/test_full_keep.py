@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from clfd_bench import pretrained
+from clfd_bench.harness.checkpoint import decode_checkpoint, encode_checkpoint
 from clfd_bench.pretrained import PretrainedError
 from clfd_bench.runs import RunDir, find_runs
 
@@ -184,3 +185,46 @@ def test_a_checkpoint_over_the_cap_is_not_kept(out, keep_mod, tmp_path, capsys):
     assert keep_mod.save(out, keep, partial=True, max_mb=0.001) == 1  # HN's finished run only
     assert not any("/sg/" in k for k in json.loads((keep / "MANIFEST.json").read_text()))
     assert "> --max-mb 0.001" in capsys.readouterr().out
+
+
+def _one_task_behind(checkpoint: Path) -> None:
+    """Rewrites ``checkpoint`` as if it were written one task before its results (the state
+    a run's files are in for an instant: its checkpoint and results.json are two writes)."""
+    header, tensors = decode_checkpoint(checkpoint.read_bytes())
+    header["state"]["train_time_s"] = header["state"]["train_time_s"][:-1]
+    checkpoint.write_bytes(encode_checkpoint(header, tensors))
+
+
+def test_a_training_run_caught_between_two_writes_is_copied_again(out, keep_mod, tmp_path,
+                                                                  monkeypatch):
+    """--partial on a run that is training: a copy whose checkpoint and results.json describe
+    different tasks is not archived; the run is copied again and the agreeing copy kept."""
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    copies = []
+
+    def racing_copy(source, staging, left_out):
+        keep_mod.shutil.copytree(source, staging,
+                                 ignore=keep_mod.shutil.ignore_patterns(*left_out))
+        if "/sg/" in source.as_posix():
+            copies.append(source)
+            if len(copies) == 1:
+                _one_task_behind(staging / "checkpoint.pt")
+
+    monkeypatch.setattr(keep_mod, "_copy_run", racing_copy)
+    assert keep_mod.save(out, keep, partial=True) == 2
+    assert len(copies) == 2  # SG's disagreeing copy, then the one kept
+    (sg_key,) = [k for k in json.loads((keep / "MANIFEST.json").read_text()) if "/sg/" in k]
+    fresh = tmp_path / "fresh"
+    keep_mod.restore(keep, fresh, refresh=_no_refresh)
+    assert _files(fresh / sg_key) == _files(out / sg_key)
+
+
+def test_a_run_whose_files_never_agree_is_not_kept(out, keep_mod, tmp_path, capsys):
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    (sg,) = [r for r in find_runs(out) if r.path.parent.name == "sg"]
+    _one_task_behind(sg.checkpoint_path)
+    assert keep_mod.save(out, keep, partial=True) == 1  # HN's finished run only
+    assert not any("/sg/" in k for k in json.loads((keep / "MANIFEST.json").read_text()))
+    assert "not kept this time" in capsys.readouterr().out
