@@ -25,8 +25,9 @@
 # executed again, are archived into KEEP (CLFD_FULL_KEEP, default docs/studies/full-runs;
 # "none" keeps nothing). Commit what it adds there.
 # While the stages run, every CLFD_FULL_KEEP_EVERY seconds (default 1800; 0: never) the runs
-# still training that learned a task since are kept too, with their checkpoint (up to 20 MB:
-# `full_keep.py save --partial`, which copies a run that trains until its files agree), so a
+# still training that learned a task since are kept too, with their checkpoint (up to
+# CLFD_FULL_KEEP_MB, default 20: `full_keep.py save --partial`, which copies a run that trains
+# until its files agree; docs/decisions.md, decision 7, gives each run's size), so a
 # machine that ends without warning loses at most each run's task being learned; the next
 # machine's restore lets the grid resume them after their last task. At a session's end run
 # the same save once more by hand (no need to stop the runs) and commit what it adds.
@@ -47,7 +48,8 @@ stage() {  # stage N DATASET SEEDS
 
 keeper() {  # every $1 seconds, keep the runs that learned a task since (with checkpoints)
   while sleep "$1"; do
-    python "$repo/eval/full_keep.py" save --partial "$out" "$keep_dir" 2>&1 \
+    python "$repo/eval/full_keep.py" save --partial --max-mb "${CLFD_FULL_KEEP_MB:-20}" \
+      "$out" "$keep_dir" 2>&1 \
       | sed "s/^/[full_runs keeper $(date -u +%FT%TZ)] /"
   done
 }
