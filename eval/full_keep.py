@@ -61,7 +61,7 @@ import tempfile
 from pathlib import Path
 
 from clfd_bench.execution.fingerprint import sim_fingerprint
-from clfd_bench.harness.checkpoint import CheckpointError, decode_checkpoint
+from clfd_bench.harness.checkpoint import decode_checkpoint
 from clfd_bench.io import atomic_write_json, sha256_file
 from clfd_bench.pretrained import Bundle, PretrainedError, extract_archive, make_archive
 from clfd_bench.runs import TASK_SNAPSHOT_FILE, TASK_SNAPSHOT_NOTE, RunDir, find_runs
@@ -147,12 +147,20 @@ def _save(out: Path, keep: Path, partial: bool, max_mb: float) -> int:
 
 def _archive(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]) -> str:
     """Writes ``KEEP/<key>.tar.xz`` from the run without ``left_out``; returns its sha256."""
+    with _staged(run, keep, key, left_out) as (copy, archive):
+        return make_archive(copy.path, archive)
+
+
+@contextlib.contextmanager
+def _staged(run: RunDir, keep: Path, key: str, left_out: tuple[str, ...]):
+    """Yields ``(copy, archive)``: a copy of the run without ``left_out`` in a temporary
+    folder under KEEP (removed after the block), and the path of its archive."""
     archive = keep / f"{key}.tar.xz"
     archive.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
         staging = Path(tmp) / run.path.name
         _copy_run(run.path, staging, left_out)
-        return make_archive(staging, archive)
+        yield RunDir(staging), archive
 
 
 def _copy_run(source: Path, staging: Path, left_out: tuple[str, ...]) -> None:
@@ -164,23 +172,18 @@ def _archive_consistent(run: RunDir, keep: Path, key: str) -> tuple[str, dict, i
     may be training: a task finishing during the copy leaves a checkpoint of one more task
     than the copied ``results.json``, or predictions missing). Returns ``(sha256, results,
     tasks)`` of the copy archived, or None when ``COPY_TRIES`` copies all disagreed."""
-    archive = keep / f"{key}.tar.xz"
-    archive.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(COPY_TRIES):
-        with tempfile.TemporaryDirectory(prefix=".keep-", dir=keep) as tmp:
-            staging = Path(tmp) / run.path.name
-            _copy_run(run.path, staging, PARTIAL_LEFT_OUT)
-            copy = RunDir(staging)
-            try:
+        with _staged(run, keep, key, PARTIAL_LEFT_OUT) as (copy, archive):
+            try:  # RunFileError and CheckpointError are ValueErrors
                 results = copy.read_results() or {}
                 header, _ = decode_checkpoint(copy.read_checkpoint(), str(copy.checkpoint_path))
-            except (OSError, ValueError, CheckpointError):
+            except (OSError, ValueError):
                 continue
             tasks = int(results.get("tasks_done") or 0)
             learned = len(header["state"]["train_time_s"])
             if tasks == learned and all(copy.predictions_path(i).is_file()
                                         for i in range(tasks)):
-                return make_archive(staging, archive), results, tasks
+                return make_archive(copy.path, archive), results, tasks
     return None
 
 

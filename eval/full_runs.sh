@@ -48,15 +48,15 @@ stage() {  # stage N DATASET SEEDS
 
 keeper() {  # every $1 seconds, keep the runs that learned a task since (with checkpoints)
   while sleep "$1"; do
-    python "$repo/eval/full_keep.py" save --partial --max-mb "${CLFD_FULL_KEEP_MB:-20}" \
-      "$out" "$keep_dir" 2>&1 \
+    keep save --partial --max-mb "${CLFD_FULL_KEEP_MB:-20}" 2>&1 \
       | sed "s/^/[full_runs keeper $(date -u +%FT%TZ)] /"
   done
 }
 
-keep() {  # keep save|restore
+keep() {  # keep save [full_keep.py save's options]|restore
   [ "$keep_dir" = none ] && return 0
-  if [ "$1" = save ]; then python "$repo/eval/full_keep.py" save "$out" "$keep_dir"
+  local what="$1"; shift
+  if [ "$what" = save ]; then python "$repo/eval/full_keep.py" save "$@" "$out" "$keep_dir"
   else python "$repo/eval/full_keep.py" restore "$keep_dir" "$out"; fi
 }
 
